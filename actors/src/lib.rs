@@ -1,0 +1,9 @@
+//! gridlight's master runtime: the wire protocol and its codec, the scene-state
+//! values that travel in it, and every actix actor of the master.
+//!
+//! This crate knows nothing of rendering, windows or wgpu: the display actor hands
+//! frames to a sink trait, and the `gridlight` crate plugs the renderer, the
+//! reconstruction and the window into it (DESIGN.md, Layout).
+
+pub mod protocol;
+pub mod state;

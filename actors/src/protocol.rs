@@ -1,0 +1,168 @@
+//! The wire protocol between master and workers: every message, and its invariants.
+//!
+//! # Framing
+//! TCP; each message is one frame: a 4-byte big-endian length `n`, then `n` bytes of
+//! MessagePack (rmp-serde, structs as maps are *not* used: fields are positional).
+//! `0 < n <= MAX_FRAME_LEN`, checked before anything is allocated. A frame that fails
+//! to decode, or a message that is not allowed in the connection's current phase,
+//! ends that connection (never the process) after a [`MasterMsg::Rejected`] naming
+//! the problem where the peer can still read it.
+//!
+//! # Phases (master's view of one connection)
+//! 1. **Hello**: the worker's first frame is [`WorkerMsg::Hello`]. A wrong
+//!    `protocol` gets `Rejected` and close. The master answers [`MasterMsg::Challenge`]
+//!    with a fresh random nonce.
+//! 2. **Auth**: the worker answers [`WorkerMsg::Auth`] with HMAC-SHA256(secret, nonce)
+//!    (`None` when it has no secret). With a secret configured on the master, a
+//!    missing or wrong MAC gets `Rejected` and close; the secret itself never travels.
+//! 3. **Scene**: the master sends [`MasterMsg::Welcome`]: the worker id, the sets
+//!    configuration and the manifest of assets (path, SHA-256, length). The worker
+//!    requests every asset missing from its cache with [`WorkerMsg::AssetRequest`]
+//!    (only hashes in the manifest are served) and receives [`MasterMsg::AssetChunk`]s
+//!    in order; it verifies the hash of the whole file before using it.
+//! 4. **Work**: the worker sends [`WorkerMsg::Ready`] with credits (how many more
+//!    jobs it can hold; at most `k` in total, DESIGN.md decision 7). For each job the
+//!    master sends, *before the first job that names a state version on this
+//!    connection*, that [`MasterMsg::State`]; then [`MasterMsg::Job`]. A worker never
+//!    renders with a state it was not sent. Each job is answered by exactly one
+//!    [`WorkerMsg::Result`], whose frame, set and state version must equal the job's,
+//!    and whose radiance holds exactly one pixel per pixel of the set (pixel indices
+//!    never travel: both sides derive them from `(resolution, sets, partition, set)`).
+//!
+//! Either side sends [`WorkerMsg::Heartbeat`]/[`MasterMsg::Heartbeat`] when it has
+//! been quiet for [`HEARTBEAT_INTERVAL`]; a peer silent for [`PEER_TIMEOUT`] is gone.
+//!
+//! # What the master never does
+//! Re-send a job whose result was lost: a late or missing result leaves a hole that
+//! reconstruction fills (DESIGN.md, "nothing lost is redone").
+
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::state::{SceneState, StateVersion};
+
+/// Bumped on every incompatible change of any message below.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// Largest frame either side accepts, in bytes (length prefix excluded).
+pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
+
+/// Asset bytes per [`MasterMsg::AssetChunk`]; well below [`MAX_FRAME_LEN`].
+pub const ASSET_CHUNK_LEN: usize = 1024 * 1024;
+
+/// Send a heartbeat after this long without sending anything.
+pub const HEARTBEAT_INTERVAL: Duration = Duration::from_secs(2);
+
+/// A peer that sent nothing for this long is considered gone.
+pub const PEER_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Number of a scheduled frame; strictly increasing within one master run.
+pub type FrameNo = u64;
+
+/// Number of a pixel set within a frame, `0..sets`.
+pub type SetNo = u32;
+
+/// SHA-256 of an asset file's bytes.
+pub type AssetHash = [u8; 32];
+
+/// How pixels are assigned to sets (DESIGN.md decision 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Partition {
+    /// Scrambled low-discrepancy assignment: every set covers the whole image.
+    QuasiRandom,
+    /// Square-ish tiles, as in the paper's Figure 3 comparison.
+    Tiles,
+}
+
+/// How a frame is split into jobs; fixed for a master run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SetsConfig {
+    /// Number of sets S per frame.
+    pub sets: u32,
+    pub partition: Partition,
+}
+
+/// One asset file the scene needs.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AssetEntry {
+    /// Path relative to an asset root, as scene states name it.
+    pub path: String,
+    pub hash: AssetHash,
+    pub len: u64,
+}
+
+/// Radiance of a set's pixels, in set order, packed (DESIGN.md decision 2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum PackedRadiance {
+    /// Shared-exponent RGB9E5, one `u32` per pixel (non-negative, finite by construction).
+    Rgb9e5(Vec<u32>),
+}
+
+impl PackedRadiance {
+    /// Number of pixels carried.
+    pub fn len(&self) -> usize {
+        match self {
+            PackedRadiance::Rgb9e5(v) => v.len(),
+        }
+    }
+
+    /// True when no pixel is carried.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Messages from a worker to the master.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum WorkerMsg {
+    /// First frame on a connection.
+    Hello { protocol: u32, name: String, cores: u32 },
+    /// Answer to [`MasterMsg::Challenge`]: HMAC-SHA256(secret, nonce), if it has a secret.
+    Auth { mac: Option<[u8; 32]> },
+    /// Ask for an asset of the manifest by hash.
+    AssetRequest { hash: AssetHash },
+    /// The worker can take `credits` more jobs.
+    Ready { credits: u32 },
+    /// The answer to one job.
+    Result(JobResult),
+    /// Nothing else to say; keeps the connection alive.
+    Heartbeat,
+}
+
+/// The rendered pixels of one job.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JobResult {
+    pub frame: FrameNo,
+    pub set: SetNo,
+    pub state_version: StateVersion,
+    /// Demodulated radiance (divided by the primary hit's albedo) of the set's pixels.
+    pub radiance: PackedRadiance,
+    /// Time spent rendering, in microseconds.
+    pub render_us: u64,
+}
+
+/// Messages from the master to a worker.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum MasterMsg {
+    /// Answer to `Hello`: prove the secret by MAC over `nonce`.
+    Challenge { nonce: [u8; 32], auth_required: bool },
+    /// The connection is refused or ended; `reason` says why, for a human.
+    Rejected { reason: String },
+    /// Authentication passed: who you are, how frames are split, what to fetch.
+    Welcome { worker_id: u64, sets: SetsConfig, assets: Vec<AssetEntry> },
+    /// Part of an asset, in order; `offset + data.len() == len` on the last one.
+    AssetChunk {
+        hash: AssetHash,
+        offset: u64,
+        len: u64,
+        #[serde(with = "serde_bytes")]
+        data: Vec<u8>,
+    },
+    /// A scene state, sent before the first job on this connection that names it.
+    State(Box<SceneState>),
+    /// Render set `set` of frame `frame` with state `state_version`.
+    Job { frame: FrameNo, set: SetNo, state_version: StateVersion },
+    /// Nothing else to say; keeps the connection alive.
+    Heartbeat,
+}

@@ -1,0 +1,13 @@
+//! gridlight: interactive path tracing on a desktop grid.
+//!
+//! # Layout
+//! - [`assets`]: loaded meshes, textures and environment maps.
+//! - [`shapes`]: meshes of the built-in shapes (quad, cube, sphere).
+//!
+//! The master's runtime (wire protocol, scene-state values, actors) lives in the
+//! `gridlight-actors` crate, which this crate depends on and never the reverse.
+
+pub mod assets;
+pub mod shapes;
+
+pub use gridlight_actors as actors;
