@@ -3,11 +3,13 @@
 //! # Layout
 //! - [`assets`]: loaded meshes, textures and environment maps.
 //! - [`shapes`]: meshes of the built-in shapes (quad, cube, sphere).
+//! - [`cli`]: the command line (clap), one module per subcommand.
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
 //! `gridlight-actors` crate, which this crate depends on and never the reverse.
 
 pub mod assets;
+pub mod cli;
 pub mod shapes;
 
 pub use gridlight_actors as actors;

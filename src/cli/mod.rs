@@ -1,0 +1,81 @@
+//! The command line: one clap-derive [`Cli`] with global options and one subcommand per file.
+//!
+//! Each subcommand lives in its own module with an `Args` struct and a
+//! `run(args, &GlobalArgs) -> anyhow::Result<()>`; adding one means a module, a variant of
+//! [`Command`] and an arm in [`run`]. The binary (`src/main.rs`) only parses and calls [`run`],
+//! so tests can drive the same code in-process (STYLE.md item 1).
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+pub mod render;
+
+/// Interactive path tracing on a desktop grid.
+#[derive(Debug, Parser)]
+#[command(name = "gridlight", version, about, propagate_version = true)]
+pub struct Cli {
+    #[command(flatten)]
+    pub global: GlobalArgs,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Options every subcommand accepts.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct GlobalArgs {
+    /// Directory searched for scene assets (meshes, textures, environment maps); repeatable,
+    /// searched in order before `GRIDLIGHT_ASSETS` (colon-separated) and `scenes/assets/`.
+    #[arg(long = "assets", value_name = "DIR", global = true)]
+    pub assets: Vec<PathBuf>,
+}
+
+/// The subcommands (each engineer adds theirs here, in its own module).
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a scene file to a PNG (tonemapped sRGB) or EXR (linear) image on all local cores.
+    Render(render::Args),
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Render(args) => render::run(args, &cli.global),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn a_subcommand_is_required() {
+        assert!(Cli::try_parse_from(["gridlight"]).is_err());
+    }
+
+    /// Parses `gridlight <before> render s.toml --out x.png <after>`.
+    fn parse(before: &[&str], after: &[&str]) -> Cli {
+        let args = ["gridlight"]
+            .iter()
+            .chain(before)
+            .chain(&["render", "s.toml", "--out", "x.png"])
+            .chain(after)
+            .copied();
+        Cli::try_parse_from(args).expect("valid command line")
+    }
+
+    #[test]
+    fn assets_option_is_repeatable_before_or_after_the_subcommand() {
+        let expected = vec![PathBuf::from("a"), PathBuf::from("b")];
+        // clap keeps the occurrences of one side only when a global option is given on both.
+        assert_eq!(parse(&["--assets", "a", "--assets", "b"], &[]).global.assets, expected);
+        assert_eq!(parse(&[], &["--assets", "a", "--assets", "b"]).global.assets, expected);
+        assert!(parse(&[], &[]).global.assets.is_empty());
+    }
+}
