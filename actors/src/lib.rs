@@ -5,5 +5,9 @@
 //! frames to a sink trait, and the `gridlight` crate plugs the renderer, the
 //! reconstruction and the window into it (DESIGN.md, Layout).
 
+pub mod auth;
+pub mod codec;
+pub mod packing;
 pub mod protocol;
+pub mod sets;
 pub mod state;
