@@ -4,6 +4,7 @@
 //! - [`assets`]: loaded meshes, textures and environment maps.
 //! - [`shapes`]: meshes of the built-in shapes (quad, cube, sphere).
 //! - [`cli`]: the command line (clap), one module per subcommand.
+//! - [`worker`]: the worker runtime (connections, asset cache, render threads).
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
 //! `gridlight-actors` crate, which this crate depends on and never the reverse.
@@ -11,5 +12,6 @@
 pub mod assets;
 pub mod cli;
 pub mod shapes;
+pub mod worker;
 
 pub use gridlight_actors as actors;
