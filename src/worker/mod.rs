@@ -1,7 +1,222 @@
 //! The worker runtime: `gridlight worker --master HOST:PORT`.
 //!
+//! Each render thread is one independent worker (paper, section 4.4): its own TCP
+//! connection, handshake, scene states and jobs. The connections share one process-wide
+//! context ([`shared::Shared`]: the asset cache, pixel-set tables, loaded assets) and one
+//! small tokio runtime for their I/O; rendering happens on one OS thread per connection.
+//! A connection that ends for any reason but a fatal one (wrong version or secret)
+//! reconnects with exponential back-off and jitter; Ctrl-C ends them all cleanly.
+//!
 //! - [`cache`]: the hash-keyed on-disk asset cache.
 //! - [`backoff`]: reconnect delays.
+//! - [`session`]: one connection's protocol phases.
+//! - [`render`]: the render thread (path tracer or null renderer).
+//! - [`shared`]: what the connections of a process share.
 
 pub mod backoff;
 pub mod cache;
+pub mod render;
+pub mod session;
+pub mod shared;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use rand::SeedableRng;
+use tokio::net::TcpStream;
+use tokio_util::codec::Framed;
+use tokio_util::sync::CancellationToken;
+use tracing::{error, info, warn};
+
+use backoff::Backoff;
+pub use render::RendererKind;
+use session::{SessionConfig, SessionEnd, SessionProgress};
+use shared::Shared;
+
+/// Jobs a worker holds at once when not told otherwise (DESIGN.md decision 7).
+pub const DEFAULT_PIPELINE: u32 = 2;
+
+/// Longest wait for a TCP connection to the master.
+pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How a worker process runs.
+#[derive(Clone, Debug)]
+pub struct WorkerConfig {
+    /// The master's `HOST:PORT`.
+    pub master: String,
+    /// Render threads, each its own connection.
+    pub threads: usize,
+    /// Shared secret proved by HMAC, if the master requires one.
+    pub secret: Option<Vec<u8>>,
+    /// The asset cache directory.
+    pub cache_dir: std::path::PathBuf,
+    /// Base name; connection `i` calls itself `NAME#i`.
+    pub name: String,
+    /// Jobs held per connection.
+    pub pipeline: u32,
+    pub renderer: RendererKind,
+}
+
+/// Why a worker (or one of its connections) stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkerError {
+    #[error("the master rejected this worker: {reason}")]
+    Rejected { reason: String, fatal: bool },
+    #[error("the master requires a shared secret: pass --secret-file")]
+    NeedSecret,
+    #[error("connection to the master: {0}")]
+    Connection(String),
+    #[error("protocol violation by the master: {0}")]
+    Protocol(String),
+    #[error(transparent)]
+    Cache(#[from] cache::CacheError),
+    #[error("loading the scene's assets: {0}")]
+    Assets(String),
+    #[error("rendering: {0}")]
+    Render(String),
+    #[error("cannot start the worker runtime: {0}")]
+    Runtime(std::io::Error),
+}
+
+impl WorkerError {
+    /// Errors that reconnecting cannot fix: the process should exit non-zero.
+    pub fn is_fatal(&self) -> bool {
+        matches!(
+            self,
+            WorkerError::Rejected { fatal: true, .. }
+                | WorkerError::NeedSecret
+                | WorkerError::Runtime(_)
+        )
+    }
+}
+
+/// Idle cores of this machine: available parallelism minus the 1-minute load, at least 1.
+pub fn idle_cores() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let load = std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().and_then(|l| l.parse::<f64>().ok()))
+        .unwrap_or(0.0);
+    cores.saturating_sub(load.round() as usize).max(1)
+}
+
+/// A default worker name: the host name and the process id.
+pub fn default_name() -> String {
+    let host = std::fs::read_to_string("/etc/hostname")
+        .ok()
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .or_else(|| std::env::var("HOSTNAME").ok())
+        .unwrap_or_else(|| "worker".into());
+    format!("{host}:{}", std::process::id())
+}
+
+/// Runs a worker process until Ctrl-C (`Ok`) or a fatal error.
+pub fn run(config: WorkerConfig) -> Result<(), WorkerError> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("worker-io")
+        .enable_all()
+        .build()
+        .map_err(WorkerError::Runtime)?;
+    runtime.block_on(async move {
+        let cancel = CancellationToken::new();
+        let ctrl_c = cancel.clone();
+        tokio::spawn(async move {
+            if tokio::signal::ctrl_c().await.is_ok() {
+                info!("Ctrl-C: shutting down");
+            }
+            ctrl_c.cancel();
+        });
+        run_until(config, cancel).await
+    })
+}
+
+/// Runs the worker's connections until `cancel` fires (`Ok`) or one fails fatally.
+pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Result<(), WorkerError> {
+    let shared = Arc::new(Shared::new(cache::AssetCache::open(&config.cache_dir)?));
+    info!(master = %config.master, threads = config.threads, cache = %config.cache_dir.display(), "worker starting");
+    let mut tasks = tokio::task::JoinSet::new();
+    for i in 0..config.threads.max(1) {
+        let session = SessionConfig {
+            name: format!("{}#{i}", config.name),
+            secret: config.secret.clone().map(Arc::new),
+            pipeline: config.pipeline,
+            renderer: config.renderer,
+        };
+        tasks.spawn(connection_loop(
+            config.master.clone(),
+            session,
+            Arc::clone(&shared),
+            cancel.clone(),
+        ));
+    }
+    let mut outcome = Ok(());
+    while let Some(done) = tasks.join_next().await {
+        let result = done.unwrap_or_else(|e| {
+            Err(WorkerError::Connection(format!("connection task failed: {e}")))
+        });
+        if let Err(err) = result {
+            // A fatal error of one connection is the same for all: stop them.
+            cancel.cancel();
+            if outcome.is_ok() {
+                outcome = Err(err);
+            }
+        }
+    }
+    outcome
+}
+
+/// Connects, runs a session, and reconnects with back-off until shutdown or a fatal error.
+async fn connection_loop(
+    master: String,
+    config: SessionConfig,
+    shared: Arc<Shared>,
+    cancel: CancellationToken,
+) -> Result<(), WorkerError> {
+    let mut backoff = Backoff::default();
+    let mut rng = rand::rngs::StdRng::from_entropy();
+    loop {
+        let mut progress = SessionProgress::default();
+        let outcome = match connect(&master).await {
+            Ok(transport) => {
+                session::run(transport, &config, &shared, &cancel, &mut progress).await
+            }
+            Err(err) => Err(err),
+        };
+        match outcome {
+            Ok(SessionEnd::Shutdown) => return Ok(()),
+            Ok(SessionEnd::Closed) => info!(worker = %config.name, "master closed the connection"),
+            Err(err) if err.is_fatal() => {
+                error!(worker = %config.name, cause = %err, "giving up");
+                return Err(err);
+            }
+            Err(err) => warn!(worker = %config.name, cause = %err, "connection lost"),
+        }
+        if cancel.is_cancelled() {
+            return Ok(());
+        }
+        if progress.welcomed {
+            backoff.reset();
+        }
+        let delay = backoff.next_delay(&mut rng);
+        info!(worker = %config.name, delay_ms = delay.as_millis() as u64, "reconnecting");
+        tokio::select! {
+            () = tokio::time::sleep(delay) => {}
+            () = cancel.cancelled() => return Ok(()),
+        }
+    }
+}
+
+/// Opens a framed connection to the master.
+async fn connect(
+    master: &str,
+) -> Result<Framed<TcpStream, gridlight_actors::codec::WorkerCodec>, WorkerError> {
+    let stream = tokio::time::timeout(CONNECT_TIMEOUT, TcpStream::connect(master))
+        .await
+        .map_err(|_| WorkerError::Connection(format!("connecting to {master}: timed out")))?
+        .map_err(|e| WorkerError::Connection(format!("connecting to {master}: {e}")))?;
+    // Results are small and latency matters more than packet count.
+    let _ = stream.set_nodelay(true);
+    Ok(Framed::new(stream, gridlight_actors::codec::WorkerCodec::default()))
+}

@@ -1,0 +1,117 @@
+//! The render thread of one worker connection: turns jobs into packed results.
+//!
+//! Rendering is CPU-bound and long compared to I/O, so each connection has its own OS
+//! thread that owns the render structures (`RenderScene`, its BVHs) and renders one job
+//! at a time; the connection's async task only moves messages. The thread applies a new
+//! scene state (`RenderScene::set_state`) when a job names a version it has not rendered
+//! with yet, derives the job's pixels from the set number (pixel indices never travel),
+//! renders them and packs the demodulated radiance as RGB9E5.
+//!
+//! The null renderer (`--null-render`, for `gridlight bench master`) answers every job
+//! with constant radiance at no cost, so a benchmark measures the master alone.
+
+use std::sync::mpsc as std_mpsc;
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::Vec3;
+use gridlight_actors::packing::encode_rgb9e5;
+use gridlight_actors::protocol::{FrameNo, JobResult, PackedRadiance, SetNo, SetsConfig};
+use gridlight_actors::state::SceneState;
+use tokio::sync::mpsc;
+use tracing::error;
+
+use super::shared::Shared;
+use super::WorkerError;
+
+/// Radiance the null renderer returns for every pixel (mid grey, demodulated).
+pub const NULL_RADIANCE: Vec3 = Vec3::splat(0.5);
+
+/// Which renderer a worker runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RendererKind {
+    /// Constant radiance at zero cost, for benchmarking the master.
+    Null,
+}
+
+/// One job with the scene state it names.
+#[derive(Clone, Debug)]
+pub struct RenderJob {
+    pub frame: FrameNo,
+    pub set: SetNo,
+    pub state: Arc<SceneState>,
+}
+
+/// Handle to a connection's render thread; dropping it ends the thread after its
+/// current job.
+pub struct RenderThread {
+    jobs: std_mpsc::Sender<RenderJob>,
+}
+
+impl RenderThread {
+    /// Starts the thread; results (or the error that ended it) go to `results`.
+    pub fn spawn(
+        name: &str,
+        kind: RendererKind,
+        shared: Arc<Shared>,
+        sets: SetsConfig,
+        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+    ) -> Result<Self, WorkerError> {
+        let (jobs, rx) = std_mpsc::channel::<RenderJob>();
+        let mut renderer = Renderer { kind, shared, sets };
+        std::thread::Builder::new()
+            .name(format!("render {name}"))
+            .spawn(move || {
+                while let Ok(job) = rx.recv() {
+                    let result = renderer.render(&job);
+                    let failed = result.is_err();
+                    if let Err(err) = &result {
+                        error!(frame = job.frame, set = job.set, cause = %err, "render failed");
+                    }
+                    if results.send(result).is_err() || failed {
+                        break;
+                    }
+                }
+            })
+            .map_err(|e| WorkerError::Render(format!("cannot start a render thread: {e}")))?;
+        Ok(Self { jobs })
+    }
+
+    /// Queues a job behind the ones already held.
+    pub fn submit(&self, job: RenderJob) -> Result<(), WorkerError> {
+        self.jobs.send(job).map_err(|_| WorkerError::Render("the render thread ended".into()))
+    }
+}
+
+/// What the render thread owns.
+struct Renderer {
+    kind: RendererKind,
+    shared: Arc<Shared>,
+    sets: SetsConfig,
+}
+
+impl Renderer {
+    fn render(&mut self, job: &RenderJob) -> Result<JobResult, WorkerError> {
+        let started = Instant::now();
+        let res = job.state.resolution;
+        let table = self.shared.set_table(res, self.sets).map_err(|e| {
+            WorkerError::Protocol(format!("job (frame {}, set {}): {e}", job.frame, job.set))
+        })?;
+        let pixels = table.pixels(job.set).ok_or_else(|| {
+            WorkerError::Protocol(format!(
+                "job names set {} but a frame has {} sets",
+                job.set, self.sets.sets
+            ))
+        })?;
+        let radiance = match self.kind {
+            RendererKind::Null => vec![encode_rgb9e5(NULL_RADIANCE); pixels.len()],
+        };
+        Ok(JobResult {
+            frame: job.frame,
+            set: job.set,
+            state_version: job.state.version,
+            radiance: PackedRadiance::Rgb9e5(radiance),
+            render_us: started.elapsed().as_micros() as u64,
+        })
+    }
+}

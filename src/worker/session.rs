@@ -1,0 +1,311 @@
+//! One worker connection from connect to close: the worker side of the protocol's phases.
+//!
+//! Phases (see `gridlight_actors::protocol`): Hello → Challenge → Auth → Welcome, then the
+//! assets missing from the cache are fetched by hash, and from then on the session keeps
+//! `k` jobs in flight: it sends `Ready{credits}`, stores every `State` it is sent, hands
+//! each `Job` with its state to the render thread and sends each result back followed by a
+//! new credit. A writer task owns the socket's sending half and sends a heartbeat whenever
+//! the session has been quiet for `HEARTBEAT_INTERVAL`, so long renders and downloads
+//! never look like a dead worker; a master silent for `PEER_TIMEOUT` is gone.
+//!
+//! The session is generic over its transport (a stream of decoded `MasterMsg`s and a sink
+//! of `WorkerMsg`s) so that the framing stays the codec's business.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::Duration;
+
+use futures::{Sink, SinkExt, Stream, StreamExt};
+use gridlight_actors::protocol::{
+    AssetEntry, MasterMsg, WorkerMsg, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION,
+};
+use gridlight_actors::state::{SceneState, StateVersion};
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+use tracing::{debug, info, warn};
+
+use super::render::{RenderJob, RenderThread, RendererKind};
+use super::shared::Shared;
+use super::WorkerError;
+
+/// Scene states kept per connection; jobs only ever name recent versions, and a job
+/// naming one that was dropped is a protocol error the master would have to cause.
+const KEPT_STATES: usize = 8;
+
+/// What one session needs to know about its worker.
+#[derive(Clone, Debug)]
+pub struct SessionConfig {
+    /// Name sent in `Hello` (unique per connection, for the master's logs).
+    pub name: String,
+    /// The shared secret, if any (`--secret-file`).
+    pub secret: Option<Arc<Vec<u8>>>,
+    /// Jobs held at once (DESIGN.md decision 7).
+    pub pipeline: u32,
+    /// Real path tracing or the null renderer.
+    pub renderer: RendererKind,
+}
+
+/// How a session ended without an error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SessionEnd {
+    /// Shutdown was requested (Ctrl-C).
+    Shutdown,
+    /// The master closed the connection.
+    Closed,
+}
+
+/// Progress a session made, for the reconnect policy.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct SessionProgress {
+    /// The session got past the handshake and asset fetch.
+    pub welcomed: bool,
+    /// Jobs rendered and sent back.
+    pub results_sent: u64,
+}
+
+/// Runs one session over `transport` until it ends, `cancel` fires or an error occurs.
+pub async fn run<T, E>(
+    transport: T,
+    config: &SessionConfig,
+    shared: &Arc<Shared>,
+    cancel: &CancellationToken,
+    progress: &mut SessionProgress,
+) -> Result<SessionEnd, WorkerError>
+where
+    T: Stream<Item = Result<MasterMsg, E>> + Sink<WorkerMsg, Error = E> + Send + 'static,
+    E: std::fmt::Display + Send + 'static,
+{
+    let (sink, mut stream) = transport.split();
+    let (out_tx, out_rx) = mpsc::channel::<WorkerMsg>(64);
+    let writer = tokio::spawn(write_loop(sink, out_rx));
+    let result = tokio::select! {
+        r = drive(&mut stream, &out_tx, config, shared, progress) => r,
+        () = cancel.cancelled() => Ok(SessionEnd::Shutdown),
+    };
+    drop(out_tx);
+    // Let the writer flush what is queued (a last result), but never hang on it.
+    let _ = tokio::time::timeout(Duration::from_secs(1), writer).await;
+    result
+}
+
+/// Sends queued messages, and a heartbeat after `HEARTBEAT_INTERVAL` of silence.
+async fn write_loop<S, E>(mut sink: S, mut rx: mpsc::Receiver<WorkerMsg>) -> Result<(), String>
+where
+    S: Sink<WorkerMsg, Error = E> + Unpin,
+    E: std::fmt::Display,
+{
+    loop {
+        let msg = match tokio::time::timeout(HEARTBEAT_INTERVAL, rx.recv()).await {
+            Ok(Some(msg)) => msg,
+            Ok(None) => break,
+            Err(_) => WorkerMsg::Heartbeat,
+        };
+        sink.send(msg).await.map_err(|e| e.to_string())?;
+    }
+    sink.close().await.map_err(|e| e.to_string())
+}
+
+/// The phases, in order.
+async fn drive<S, E>(
+    stream: &mut S,
+    out: &mpsc::Sender<WorkerMsg>,
+    config: &SessionConfig,
+    shared: &Arc<Shared>,
+    progress: &mut SessionProgress,
+) -> Result<SessionEnd, WorkerError>
+where
+    S: Stream<Item = Result<MasterMsg, E>> + Unpin,
+    E: std::fmt::Display,
+{
+    let mut conn = Conn { stream, out };
+    conn.send(WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: config.name.clone(), cores: 1 })
+        .await?;
+
+    // Challenge → Auth. A rejection before Welcome is about who we are (version, secret).
+    let (nonce, auth_required) = match conn.recv_handshake().await? {
+        MasterMsg::Challenge { nonce, auth_required } => (nonce, auth_required),
+        other => return Err(unexpected("Challenge", &other)),
+    };
+    if auth_required && config.secret.is_none() {
+        return Err(WorkerError::NeedSecret);
+    }
+    let mac = config.secret.as_ref().map(|s| gridlight_actors::auth::mac(s, &nonce));
+    conn.send(WorkerMsg::Auth { mac }).await?;
+    let (worker_id, sets, manifest) = match conn.recv_handshake().await? {
+        MasterMsg::Welcome { worker_id, sets, assets } => (worker_id, sets, assets),
+        other => return Err(unexpected("Welcome", &other)),
+    };
+    info!(worker = %config.name, worker_id, sets = sets.sets, assets = manifest.len(), "welcomed");
+
+    let _view = fetch_assets(&mut conn, shared, &manifest).await?;
+    progress.welcomed = true;
+
+    let (results_tx, mut results_rx) = mpsc::unbounded_channel();
+    let render =
+        RenderThread::spawn(&config.name, config.renderer, Arc::clone(shared), sets, results_tx)?;
+    let mut states: BTreeMap<StateVersion, Arc<SceneState>> = BTreeMap::new();
+    conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?;
+
+    loop {
+        tokio::select! {
+            msg = conn.recv() => match msg? {
+                None => return Ok(SessionEnd::Closed),
+                Some(MasterMsg::State(state)) => {
+                    debug!(version = state.version, "state received");
+                    states.insert(state.version, Arc::from(state));
+                    while states.len() > KEPT_STATES {
+                        states.pop_first();
+                    }
+                }
+                Some(MasterMsg::Job { frame, set, state_version }) => {
+                    let Some(state) = states.get(&state_version) else {
+                        return Err(WorkerError::Protocol(format!(
+                            "job (frame {frame}, set {set}) names state version {state_version}, which was never sent"
+                        )));
+                    };
+                    render.submit(RenderJob { frame, set, state: Arc::clone(state) })?;
+                }
+                Some(MasterMsg::Heartbeat) => {}
+                Some(MasterMsg::Rejected { reason }) => {
+                    return Err(WorkerError::Rejected { reason, fatal: false });
+                }
+                Some(other) => return Err(unexpected("State, Job or Heartbeat", &other)),
+            },
+            result = results_rx.recv() => match result {
+                Some(Ok(result)) => {
+                    conn.send(WorkerMsg::Result(result)).await?;
+                    conn.send(WorkerMsg::Ready { credits: 1 }).await?;
+                    progress.results_sent += 1;
+                }
+                Some(Err(err)) => return Err(err),
+                None => return Err(WorkerError::Protocol("render thread ended".into())),
+            },
+        }
+    }
+}
+
+/// Fetches every asset of `manifest` missing from the cache and returns a view of them.
+async fn fetch_assets<S, E>(
+    conn: &mut Conn<'_, S>,
+    shared: &Shared,
+    manifest: &[AssetEntry],
+) -> Result<super::cache::CacheView, WorkerError>
+where
+    S: Stream<Item = Result<MasterMsg, E>> + Unpin,
+    E: std::fmt::Display,
+{
+    // One connection of this process downloads; the others find the blobs afterwards.
+    let _guard = shared.fetch_lock.lock().await;
+    let missing = shared.cache.missing(manifest);
+    for entry in &missing {
+        info!(path = %entry.path, bytes = entry.len, "fetching asset");
+        let mut blob = shared.cache.begin(entry)?;
+        if entry.len > 0 {
+            conn.send(WorkerMsg::AssetRequest { hash: entry.hash }).await?;
+        }
+        while !blob.is_complete() {
+            match conn.recv().await? {
+                None => {
+                    return Err(WorkerError::Protocol(
+                        "connection closed during an asset download".into(),
+                    ))
+                }
+                Some(MasterMsg::AssetChunk { hash, offset, len, data })
+                    if hash == entry.hash && len == entry.len =>
+                {
+                    blob.write_chunk(offset, &data)?;
+                }
+                Some(MasterMsg::Heartbeat) => {}
+                Some(MasterMsg::Rejected { reason }) => {
+                    return Err(WorkerError::Rejected { reason, fatal: false })
+                }
+                Some(other) => {
+                    return Err(unexpected(&format!("AssetChunk of `{}`", entry.path), &other))
+                }
+            }
+        }
+        blob.finish()?;
+    }
+    Ok(shared.cache.view(manifest)?)
+}
+
+/// The receiving half and the writer queue of one connection.
+struct Conn<'a, S> {
+    stream: &'a mut S,
+    out: &'a mpsc::Sender<WorkerMsg>,
+}
+
+impl<S, E> Conn<'_, S>
+where
+    S: Stream<Item = Result<MasterMsg, E>> + Unpin,
+    E: std::fmt::Display,
+{
+    async fn send(&self, msg: WorkerMsg) -> Result<(), WorkerError> {
+        self.out
+            .send(msg)
+            .await
+            .map_err(|_| WorkerError::Connection("the connection's writer stopped".into()))
+    }
+
+    /// The next message; `None` when the master closed the connection.
+    async fn recv(&mut self) -> Result<Option<MasterMsg>, WorkerError> {
+        match tokio::time::timeout(PEER_TIMEOUT, self.stream.next()).await {
+            Err(_) => Err(WorkerError::Connection(format!("master silent for {PEER_TIMEOUT:?}"))),
+            Ok(None) => Ok(None),
+            Ok(Some(Err(e))) => Err(WorkerError::Connection(e.to_string())),
+            Ok(Some(Ok(msg))) => Ok(Some(msg)),
+        }
+    }
+
+    /// A handshake answer: a rejection here is fatal (wrong version or secret) unless
+    /// the master says it is full, and so is the master closing without a word.
+    async fn recv_handshake(&mut self) -> Result<MasterMsg, WorkerError> {
+        loop {
+            match self.recv().await? {
+                Some(MasterMsg::Heartbeat) => continue,
+                Some(MasterMsg::Rejected { reason }) => {
+                    let fatal = !is_transient_rejection(&reason);
+                    return Err(WorkerError::Rejected { reason, fatal });
+                }
+                Some(msg) => return Ok(msg),
+                None => {
+                    return Err(WorkerError::Connection(
+                        "master closed the connection during the handshake".into(),
+                    ))
+                }
+            }
+        }
+    }
+}
+
+/// Rejections that say "later", not "never": a full master.
+fn is_transient_rejection(reason: &str) -> bool {
+    let r = reason.to_ascii_lowercase();
+    ["too many", "capacity", "full", "busy", "shutting down"].iter().any(|w| r.contains(w))
+}
+
+fn unexpected(wanted: &str, got: &MasterMsg) -> WorkerError {
+    let name = match got {
+        MasterMsg::Challenge { .. } => "Challenge",
+        MasterMsg::Rejected { .. } => "Rejected",
+        MasterMsg::Welcome { .. } => "Welcome",
+        MasterMsg::AssetChunk { .. } => "AssetChunk",
+        MasterMsg::State(_) => "State",
+        MasterMsg::Job { .. } => "Job",
+        MasterMsg::Heartbeat => "Heartbeat",
+    };
+    warn!(wanted, got = name, "unexpected message from the master");
+    WorkerError::Protocol(format!("expected {wanted}, got {name}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_a_full_master_is_worth_retrying_during_the_handshake() {
+        assert!(is_transient_rejection("too many connections (cap 256)"));
+        assert!(!is_transient_rejection("protocol version 2, this master speaks 1"));
+        assert!(!is_transient_rejection("authentication failed"));
+    }
+}

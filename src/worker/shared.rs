@@ -1,0 +1,55 @@
+//! What the connections of one worker process share: the asset cache, the pixel-set
+//! tables and the loaded assets.
+//!
+//! Every render thread is an independent worker with its own connection, but they run
+//! in one process: downloading an asset once, computing a resolution's pixel sets once
+//! and loading a mesh once is what keeps N threads from costing N times the memory and
+//! start-up time.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use gridlight_actors::protocol::{Partition, SetsConfig};
+use gridlight_actors::sets::{SetTable, SetsError};
+use gridlight_actors::state::Resolution;
+
+use super::cache::AssetCache;
+
+/// Key of a set table: width, height, sets, partition.
+type SetKey = (u32, u32, u32, u8);
+
+/// State shared by the connections of one worker process.
+pub struct Shared {
+    pub cache: AssetCache,
+    /// Held while one connection fetches assets, so the others wait and find them cached.
+    pub fetch_lock: tokio::sync::Mutex<()>,
+    set_tables: Mutex<HashMap<SetKey, Arc<SetTable>>>,
+}
+
+impl Shared {
+    /// Shares `cache` between the connections of this process.
+    pub fn new(cache: AssetCache) -> Self {
+        Self {
+            cache,
+            fetch_lock: tokio::sync::Mutex::new(()),
+            set_tables: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// The pixel sets of a `width × height` frame split by `sets`, computed once.
+    pub fn set_table(&self, res: Resolution, sets: SetsConfig) -> Result<Arc<SetTable>, SetsError> {
+        let partition = match sets.partition {
+            Partition::QuasiRandom => 0,
+            Partition::Tiles => 1,
+        };
+        let key = (res.width, res.height, sets.sets, partition);
+        // A poisoned lock only means another thread panicked mid-insert of a complete value.
+        let mut tables = self.set_tables.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(table) = tables.get(&key) {
+            return Ok(Arc::clone(table));
+        }
+        let table = Arc::new(SetTable::new(res, sets)?);
+        tables.insert(key, Arc::clone(&table));
+        Ok(table)
+    }
+}

@@ -1,0 +1,270 @@
+//! The worker runtime against a scripted master over real loopback TCP.
+//!
+//! The "master" here is a test script speaking the protocol through the real codec
+//! (`MasterCodec`), so each phase of the worker can be checked message by message:
+//! handshake with HMAC, asset download into the cache, credits, state before job,
+//! results of the right size, reconnecting after the master goes away, and the errors
+//! that must stop a worker for good.
+
+use std::time::Duration;
+
+use futures::{SinkExt, StreamExt};
+use gridlight::worker::{self, RendererKind, WorkerConfig, WorkerError};
+use gridlight_actors::codec::MasterCodec;
+use gridlight_actors::packing::decode_rgb9e5;
+use gridlight_actors::protocol::{
+    AssetEntry, MasterMsg, Partition, SetsConfig, WorkerMsg, PROTOCOL_VERSION,
+};
+use gridlight_actors::sets::SetTable;
+use gridlight_actors::state::{Camera, RenderSettings, Resolution, SceneState};
+use sha2::{Digest, Sha256};
+use tokio::net::{TcpListener, TcpStream};
+use tokio_util::codec::Framed;
+use tokio_util::sync::CancellationToken;
+
+type Peer = Framed<TcpStream, MasterCodec>;
+
+/// No step of a scripted exchange may take longer than this.
+const STEP: Duration = Duration::from_secs(10);
+
+const SETS: SetsConfig = SetsConfig { sets: 16, partition: Partition::QuasiRandom };
+
+fn state(version: u64) -> SceneState {
+    SceneState {
+        version,
+        seed: 1,
+        resolution: Resolution { width: 32, height: 24 },
+        camera: Camera {
+            position: glam::Vec3::new(0.0, 0.0, 4.0),
+            look_at: glam::Vec3::ZERO,
+            up: glam::Vec3::Y,
+            vfov_deg: 40.0,
+            aperture: 0.0,
+            focus_distance: 1.0,
+        },
+        objects: vec![],
+        materials: vec![],
+        lights: vec![],
+        environment: None,
+        render: RenderSettings::default(),
+    }
+}
+
+fn config(master: String, cache: &std::path::Path, secret: Option<&[u8]>) -> WorkerConfig {
+    WorkerConfig {
+        master,
+        threads: 1,
+        secret: secret.map(<[u8]>::to_vec),
+        cache_dir: cache.to_path_buf(),
+        name: "test".into(),
+        pipeline: 2,
+        renderer: RendererKind::Null,
+    }
+}
+
+async fn recv(peer: &mut Peer) -> WorkerMsg {
+    loop {
+        let msg = tokio::time::timeout(STEP, peer.next())
+            .await
+            .expect("worker answered in time")
+            .expect("connection open")
+            .expect("decodable message");
+        if msg != WorkerMsg::Heartbeat {
+            return msg;
+        }
+    }
+}
+
+async fn accept(listener: &TcpListener) -> Peer {
+    let (socket, _) =
+        tokio::time::timeout(STEP, listener.accept()).await.expect("worker connected").unwrap();
+    Framed::new(socket, MasterCodec::default())
+}
+
+/// Runs the handshake up to and including Welcome; returns the worker's name.
+async fn handshake(peer: &mut Peer, secret: Option<&[u8]>, assets: Vec<AssetEntry>) -> String {
+    let WorkerMsg::Hello { protocol, name, .. } = recv(peer).await else {
+        panic!("expected Hello")
+    };
+    assert_eq!(protocol, PROTOCOL_VERSION);
+    let nonce = [7u8; 32];
+    peer.send(MasterMsg::Challenge { nonce, auth_required: secret.is_some() }).await.unwrap();
+    let WorkerMsg::Auth { mac } = recv(peer).await else { panic!("expected Auth") };
+    match secret {
+        Some(s) => {
+            assert_eq!(mac, Some(gridlight_actors::auth::mac(s, &nonce)), "MAC over our nonce")
+        }
+        None => assert_eq!(mac, None),
+    }
+    peer.send(MasterMsg::Welcome { worker_id: 1, sets: SETS, assets }).await.unwrap();
+    name
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_authenticates_fetches_assets_renders_and_reconnects() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let secret = b"s3cret".as_slice();
+    let cancel = CancellationToken::new();
+    let worker = tokio::spawn(worker::run_until(
+        config(listener.local_addr().unwrap().to_string(), cache.path(), Some(secret)),
+        cancel.clone(),
+    ));
+
+    let mut peer = accept(&listener).await;
+    let bytes: Vec<u8> = (0..3000u32).map(|i| (i % 251) as u8).collect();
+    let entry = AssetEntry {
+        path: "meshes/thing.obj".into(),
+        hash: Sha256::digest(&bytes).into(),
+        len: bytes.len() as u64,
+    };
+    let name = handshake(&mut peer, Some(secret), vec![entry.clone()]).await;
+    assert!(name.starts_with("test#0"), "{name}");
+
+    // The asset is requested by hash and accepted in two chunks.
+    assert_eq!(recv(&mut peer).await, WorkerMsg::AssetRequest { hash: entry.hash });
+    for (offset, chunk) in [(0usize, &bytes[..1000]), (1000, &bytes[1000..])] {
+        let msg = MasterMsg::AssetChunk {
+            hash: entry.hash,
+            offset: offset as u64,
+            len: entry.len,
+            data: chunk.to_vec(),
+        };
+        peer.send(msg).await.unwrap();
+    }
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
+    let blob = cache.path().join("blobs").join(hex::encode(entry.hash));
+    assert_eq!(std::fs::read(&blob).unwrap(), bytes, "verified asset in the cache");
+
+    // Two jobs in flight, each answered with its set's size, then a new credit each.
+    let st = state(3);
+    let table = SetTable::new(st.resolution, SETS).unwrap();
+    peer.send(MasterMsg::State(Box::new(st.clone()))).await.unwrap();
+    for set in [5, 9] {
+        peer.send(MasterMsg::Job { frame: 11, set, state_version: 3 }).await.unwrap();
+    }
+    let mut answered = vec![];
+    while answered.len() < 2 {
+        match recv(&mut peer).await {
+            WorkerMsg::Result(r) => {
+                assert_eq!((r.frame, r.state_version), (11, 3));
+                assert_eq!(r.radiance.len(), table.set_len(r.set));
+                let gridlight_actors::protocol::PackedRadiance::Rgb9e5(px) = &r.radiance;
+                assert!(px.iter().all(|p| decode_rgb9e5(*p) == worker::render::NULL_RADIANCE));
+                answered.push(r.set);
+            }
+            WorkerMsg::Ready { credits } => assert_eq!(credits, 1),
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    answered.sort();
+    assert_eq!(answered, vec![5, 9]);
+
+    // The master goes away: the worker comes back by itself, and needs no download now.
+    drop(peer);
+    let mut peer = accept(&listener).await;
+    handshake(&mut peer, Some(secret), vec![entry]).await;
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
+
+    cancel.cancel();
+    let outcome = tokio::time::timeout(STEP, worker).await.expect("worker stopped").unwrap();
+    assert!(outcome.is_ok(), "{outcome:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_naming_an_unsent_state_ends_the_session() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let cancel = CancellationToken::new();
+    let worker = tokio::spawn(worker::run_until(
+        config(listener.local_addr().unwrap().to_string(), cache.path(), None),
+        cancel.clone(),
+    ));
+    let mut peer = accept(&listener).await;
+    handshake(&mut peer, None, vec![]).await;
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
+    peer.send(MasterMsg::Job { frame: 1, set: 0, state_version: 42 }).await.unwrap();
+    // The worker hangs up on this connection (no result) and reconnects.
+    let closed = tokio::time::timeout(STEP, async {
+        loop {
+            match peer.next().await {
+                None | Some(Err(_)) => break,
+                Some(Ok(WorkerMsg::Heartbeat)) => {}
+                Some(Ok(other)) => panic!("expected the connection to close, got {other:?}"),
+            }
+        }
+    });
+    closed.await.expect("worker closed the connection");
+    let mut peer = accept(&listener).await;
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Hello { .. }));
+    cancel.cancel();
+    assert!(tokio::time::timeout(STEP, worker).await.unwrap().unwrap().is_ok());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_corrupt_asset_is_refused_and_never_cached() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let cancel = CancellationToken::new();
+    let worker = tokio::spawn(worker::run_until(
+        config(listener.local_addr().unwrap().to_string(), cache.path(), None),
+        cancel.clone(),
+    ));
+    let mut peer = accept(&listener).await;
+    let entry = AssetEntry { path: "a.obj".into(), hash: Sha256::digest(b"good").into(), len: 4 };
+    handshake(&mut peer, None, vec![entry.clone()]).await;
+    assert_eq!(recv(&mut peer).await, WorkerMsg::AssetRequest { hash: entry.hash });
+    peer.send(MasterMsg::AssetChunk {
+        hash: entry.hash,
+        offset: 0,
+        len: 4,
+        data: b"evil".to_vec(),
+    })
+    .await
+    .unwrap();
+    // Refused: the worker drops the connection instead of going to work, and retries.
+    let mut peer = accept(&listener).await;
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Hello { .. }));
+    assert!(!cache.path().join("blobs").join(hex::encode(entry.hash)).exists());
+    cancel.cancel();
+    assert!(tokio::time::timeout(STEP, worker).await.unwrap().unwrap().is_ok());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_rejected_handshake_stops_the_worker_with_the_masters_reason() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let worker = tokio::spawn(worker::run_until(
+        config(listener.local_addr().unwrap().to_string(), cache.path(), Some(b"wrong")),
+        CancellationToken::new(),
+    ));
+    let mut peer = accept(&listener).await;
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Hello { .. }));
+    peer.send(MasterMsg::Challenge { nonce: [1; 32], auth_required: true }).await.unwrap();
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Auth { mac: Some(_) }));
+    let reason = "authentication failed: wrong secret".to_string();
+    peer.send(MasterMsg::Rejected { reason: reason.clone() }).await.unwrap();
+    let outcome = tokio::time::timeout(STEP, worker).await.expect("worker gave up").unwrap();
+    match outcome {
+        Err(err @ WorkerError::Rejected { .. }) => {
+            assert!(err.is_fatal());
+            assert!(err.to_string().contains(&reason), "{err}");
+        }
+        other => panic!("expected a fatal rejection, got {other:?}"),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_without_a_secret_stops_when_the_master_requires_one() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let worker = tokio::spawn(worker::run_until(
+        config(listener.local_addr().unwrap().to_string(), cache.path(), None),
+        CancellationToken::new(),
+    ));
+    let mut peer = accept(&listener).await;
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Hello { .. }));
+    peer.send(MasterMsg::Challenge { nonce: [1; 32], auth_required: true }).await.unwrap();
+    let outcome = tokio::time::timeout(STEP, worker).await.expect("worker gave up").unwrap();
+    assert!(matches!(outcome, Err(WorkerError::NeedSecret)), "{outcome:?}");
+}
