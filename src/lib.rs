@@ -5,12 +5,16 @@
 //! - [`shapes`]: meshes of the built-in shapes (quad, cube, sphere).
 //! - [`cli`]: the command line (clap), one module per subcommand.
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
+//! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
+//! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
 //! `gridlight-actors` crate, which this crate depends on and never the reverse.
 
 pub mod assets;
 pub mod cli;
+pub mod gpu;
+pub mod reconstruct;
 pub mod shapes;
 pub mod worker;
 

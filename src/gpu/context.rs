@@ -1,0 +1,80 @@
+//! The wgpu instance, adapter, device and queue, created once and shared by the passes.
+//!
+//! No window is needed: reconstruction runs headless too. On machines without a GPU,
+//! Mesa's lavapipe (software Vulkan) is an adapter like any other.
+
+use std::sync::Arc;
+
+/// Why the GPU could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("no GPU adapter found: {0}")]
+    NoAdapter(String),
+    #[error("requesting a device from adapter `{adapter}` failed: {cause}")]
+    RequestDevice { adapter: String, cause: String },
+    #[error("the GPU does not support {0}")]
+    Unsupported(String),
+    #[error("reading results back from the GPU failed: {0}")]
+    Readback(String),
+    #[error("the GPU reported a validation error: {0}")]
+    Validation(String),
+}
+
+/// A device and queue with what the passes need to know about the adapter.
+#[derive(Debug)]
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter_info: wgpu::AdapterInfo,
+    /// Whether GPU timestamps can be written at pass boundaries.
+    pub timestamps: bool,
+}
+
+impl GpuContext {
+    /// Opens the default adapter (the `WGPU_BACKEND` etc. environment variables apply).
+    pub fn new() -> Result<Self, GpuError> {
+        pollster::block_on(Self::open())
+    }
+
+    async fn open() -> Result<Self, GpuError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let adapter_info = adapter.get_info();
+        let formats = adapter.get_texture_format_features(wgpu::TextureFormat::Rgba32Float);
+        if !formats.allowed_usages.contains(wgpu::TextureUsages::STORAGE_BINDING) {
+            return Err(GpuError::Unsupported(format!(
+                "rgba32float storage textures on `{}`",
+                adapter_info.name
+            )));
+        }
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let required_features =
+            if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("gridlight"),
+                required_features,
+                required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuError::RequestDevice {
+                adapter: adapter_info.name.clone(),
+                cause: e.to_string(),
+            })?;
+        tracing::debug!(adapter = %adapter_info.name, backend = ?adapter_info.backend, timestamps, "GPU context");
+        Ok(Self { device, queue, adapter_info, timestamps })
+    }
+
+    /// Shared handle for several passes.
+    pub fn shared(self) -> Arc<Self> {
+        Arc::new(self)
+    }
+}

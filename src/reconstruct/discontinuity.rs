@@ -1,0 +1,94 @@
+//! The discontinuity function D of section 4.3.1 and the filter weights built on it.
+//!
+//! The paper prints `D = max(0, n_i·n_j − α) × max(0, |z_i − z_j|² − β²)`, which would give
+//! zero weight to pixels at the same position and positive weight to distant ones — the
+//! opposite of its stated purpose (DESIGN.md). We implement the intended meaning: positive
+//! only when the orientations agree (`n_i·n_j > α`) and the positions are close
+//! (`|z_i − z_j| < β`), falling smoothly to zero at each threshold:
+//!
+//! `D = max(0, (n_i·n_j − α)/(1 − α)) × max(0, 1 − |z_i − z_j|²/β²)`
+//!
+//! so that D = 1 for a pixel against itself. Pixels whose camera ray hit no surface have a
+//! zero normal and therefore D = 0 against everything. The WGSL passes
+//! (`shaders/common.wgsl`) evaluate exactly these expressions in the same order.
+
+use glam::Vec3;
+
+/// D between pixels (or frames of one pixel) with normals `n_i`, `n_j` and positions
+/// `z_i`, `z_j`; `beta` is in scene units (already multiplied by the scene scale).
+#[inline]
+pub fn discontinuity(n_i: Vec3, n_j: Vec3, z_i: Vec3, z_j: Vec3, alpha: f32, beta: f32) -> f32 {
+    let orientation = ((n_i.dot(n_j) - alpha) / (1.0 - alpha)).max(0.0);
+    let d = z_i - z_j;
+    let position = (1.0 - d.dot(d) / (beta * beta)).max(0.0);
+    orientation * position
+}
+
+/// Unnormalised Gaussian weight of an offset (the 1/(2πσ²) of the paper cancels out in
+/// the normalised sum).
+#[inline]
+pub fn gaussian(dx: i32, dy: i32, sigma: f32) -> f32 {
+    let r2 = (dx * dx + dy * dy) as f32;
+    (-r2 / (2.0 * sigma * sigma)).exp()
+}
+
+/// Whether a normal belongs to a surface (escaping rays have a zero normal).
+#[inline]
+pub fn is_surface(normal: Vec3) -> bool {
+    normal.length_squared() > 0.25
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const A: f32 = 0.75;
+
+    #[test]
+    fn same_pixel_has_full_weight() {
+        let d = discontinuity(Vec3::Y, Vec3::Y, Vec3::ONE, Vec3::ONE, A, 1.0);
+        assert!((d - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn far_positions_and_turned_normals_have_zero_weight() {
+        assert_eq!(
+            discontinuity(Vec3::Y, Vec3::Y, Vec3::ZERO, Vec3::new(0.0, 0.0, 1.5), A, 1.0),
+            0.0
+        );
+        assert_eq!(discontinuity(Vec3::Y, Vec3::X, Vec3::ZERO, Vec3::ZERO, A, 1.0), 0.0);
+        assert_eq!(discontinuity(Vec3::ZERO, Vec3::Y, Vec3::ZERO, Vec3::ZERO, A, 1.0), 0.0);
+    }
+
+    #[test]
+    fn weight_falls_monotonically_with_distance_and_angle() {
+        let mut last = f32::INFINITY;
+        for k in 0..10 {
+            let d = discontinuity(
+                Vec3::Y,
+                Vec3::Y,
+                Vec3::ZERO,
+                Vec3::new(k as f32 * 0.1, 0.0, 0.0),
+                A,
+                1.0,
+            );
+            assert!(d < last);
+            last = d;
+        }
+        let mut last = f32::INFINITY;
+        for k in 0..8 {
+            let angle = k as f32 * 0.05;
+            let n = Vec3::new(angle.sin(), angle.cos(), 0.0);
+            let d = discontinuity(Vec3::Y, n, Vec3::ZERO, Vec3::ZERO, A, 1.0);
+            assert!(d < last, "{k}");
+            last = d;
+        }
+    }
+
+    #[test]
+    fn gaussian_is_one_at_centre_and_symmetric() {
+        assert_eq!(gaussian(0, 0, 1.0), 1.0);
+        assert_eq!(gaussian(2, 1, 1.0), gaussian(-1, 2, 1.0));
+        assert!((gaussian(1, 0, 1.0) - (-0.5f32).exp()).abs() < 1e-7);
+    }
+}

@@ -1,0 +1,138 @@
+//! The G-buffer: per-pixel primary-hit data that guides reconstruction and remodulation.
+//!
+//! Computed on the master for every pixel of a frame's scene state (DESIGN.md), by the
+//! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel) or the wgpu raster pass.
+//! Stored as separate planes (structure of arrays) because each pass reads only some of
+//! them and the GPU uploads each as its own texture.
+
+use glam::Vec3;
+use gridlight_actors::state::SceneState;
+
+use super::ReconstructError;
+use crate::assets::Assets;
+
+/// Object id of pixels whose camera ray hit no object.
+pub const NO_OBJECT: u32 = u32::MAX;
+
+/// Primary-hit planes of one frame, row-major with y = 0 the top row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GBuffer {
+    pub width: u32,
+    pub height: u32,
+    /// World shading normal; zero where the camera ray escaped.
+    pub normal: Vec<Vec3>,
+    /// World position of the primary hit.
+    pub position: Vec<Vec3>,
+    /// Albedo of the primary hit (textured); 1 where the ray escaped.
+    pub albedo: Vec<Vec3>,
+    /// Emission seen directly by the camera ray (environment for escaping rays).
+    pub emission: Vec<Vec3>,
+    /// Index into `SceneState::objects`, or [`NO_OBJECT`].
+    pub object: Vec<u32>,
+    /// Scene units per unit of the relative position threshold β (see [`scene_scale`]).
+    pub scene_scale: f32,
+}
+
+impl GBuffer {
+    /// A G-buffer where every camera ray escapes into a black environment.
+    pub fn empty(width: u32, height: u32, scene_scale: f32) -> Self {
+        let n = width as usize * height as usize;
+        Self {
+            width,
+            height,
+            normal: vec![Vec3::ZERO; n],
+            position: vec![Vec3::ZERO; n],
+            albedo: vec![Vec3::ONE; n],
+            emission: vec![Vec3::ZERO; n],
+            object: vec![NO_OBJECT; n],
+            scene_scale,
+        }
+    }
+
+    /// Number of pixels.
+    pub fn len(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// Whether the image has no pixels.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Checks that every plane has one entry per pixel and the scale is usable.
+    pub fn validate(&self, width: u32, height: u32) -> Result<(), ReconstructError> {
+        if (self.width, self.height) != (width, height) {
+            return Err(ReconstructError::SizeMismatch {
+                what: "G-buffer",
+                expected: (width, height),
+                got: (self.width, self.height),
+            });
+        }
+        let n = self.len();
+        let planes = [
+            ("normal", self.normal.len()),
+            ("position", self.position.len()),
+            ("albedo", self.albedo.len()),
+            ("emission", self.emission.len()),
+            ("object", self.object.len()),
+        ];
+        for (plane, len) in planes {
+            if len != n {
+                return Err(ReconstructError::PlaneLength { plane, expected: n, got: len });
+            }
+        }
+        if !(self.scene_scale.is_finite() && self.scene_scale > 0.0) {
+            return Err(ReconstructError::BadScale(self.scene_scale));
+        }
+        Ok(())
+    }
+}
+
+/// The scene's size for the relative position threshold: half the largest extent of the
+/// world-space bounding box of all visible objects (1 for the classic 2-unit Cornell box).
+/// Falls back to 1 for an empty scene.
+pub fn scene_scale(state: &SceneState, assets: &Assets) -> f32 {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for object in state.objects.iter().filter(|o| o.visible) {
+        let builtin;
+        let mesh = match assets.meshes.get(&object.geometry) {
+            Some(mesh) => mesh.as_ref(),
+            None => match crate::shapes::mesh(&object.geometry) {
+                Some(mesh) => {
+                    builtin = mesh;
+                    &builtin
+                }
+                None => continue,
+            },
+        };
+        let matrix = object.transform.matrix();
+        for &p in &mesh.positions {
+            let w = matrix.transform_point3(p);
+            lo = lo.min(w);
+            hi = hi.max(w);
+        }
+    }
+    let extent = (hi - lo).max_element() * 0.5;
+    if extent.is_finite() && extent > 0.0 {
+        extent
+    } else {
+        1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validate_names_the_short_plane() {
+        let mut g = GBuffer::empty(4, 3, 1.0);
+        g.validate(4, 3).expect("consistent");
+        g.albedo.pop();
+        let err = g.validate(4, 3).expect_err("short plane").to_string();
+        assert!(err.contains("albedo"), "{err}");
+        let err = GBuffer::empty(4, 3, 1.0).validate(5, 3).expect_err("size").to_string();
+        assert!(err.contains("4×3"), "{err}");
+    }
+}

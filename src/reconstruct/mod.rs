@@ -1,0 +1,170 @@
+//! Spatio-temporal reconstruction of partial, noisy frames (paper §4.3.1), CPU reference.
+//!
+//! Per shown frame, on demodulated radiance (BRIEF.md's convention), guided by the
+//! frame's [`GBuffer`]:
+//! 1. **accumulate** this frame's samples; the average restarts whenever the scene state
+//!    changes, so while it is unchanged the image refines progressively (step 4);
+//! 2. **fill** pixels without samples from calculated neighbours within `radius`,
+//!    weighted by the discontinuity function D and k = 1;
+//! 3. while interacting (the first frame of a scene state), **temporal**: blend with the
+//!    previous `history` frames' filled radiance, w = 1/(F_i − F_j) times the temporal D;
+//! 4. while interacting, the **edge-aware Gaussian** (7 wide, σ = 1, times D);
+//! 5. **remodulate** the albedo, add directly seen emission, tonemap for display.
+//!
+//! [`CpuReconstructor`] is the multithreaded reference; `crate::gpu::GpuReconstructor`
+//! runs the same maths as WGSL compute passes; [`Reconstructor`] picks one.
+
+use glam::Vec3;
+use gridlight_actors::protocol::FrameNo;
+use gridlight_actors::state::StateVersion;
+
+pub mod cpu;
+pub mod discontinuity;
+pub mod gbuffer;
+pub mod history;
+pub mod params;
+pub mod passes;
+pub mod synthetic;
+pub mod tonemap;
+
+pub use cpu::CpuReconstructor;
+pub use gbuffer::{scene_scale, GBuffer, NO_OBJECT};
+pub use params::ReconstructParams;
+
+use crate::gpu::{GpuContext, GpuError, GpuReconstructor};
+
+/// Why a frame could not be reconstructed.
+#[derive(Debug, thiserror::Error)]
+pub enum ReconstructError {
+    #[error("reconstruction parameter `{name}`: {why}")]
+    BadParam { name: &'static str, why: String },
+    #[error("{what} is {}×{}, the reconstructor is {}×{}", got.0, got.1, expected.0, expected.1)]
+    SizeMismatch { what: &'static str, expected: (u32, u32), got: (u32, u32) },
+    #[error("G-buffer plane `{plane}` has {got} entries, expected {expected}")]
+    PlaneLength { plane: &'static str, expected: usize, got: usize },
+    #[error("{what} has {got} entries, expected one per pixel ({expected})")]
+    InputLength { what: &'static str, expected: usize, got: usize },
+    #[error("radiance of pixel {pixel} is not finite and non-negative: {value}")]
+    BadRadiance { pixel: usize, value: Vec3 },
+    #[error("scene scale {0} is not a positive number")]
+    BadScale(f32),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+}
+
+/// Everything one frame's reconstruction reads.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameInputs<'a> {
+    pub frame: FrameNo,
+    /// Version of the scene state the frame was rendered with; a change restarts accumulation.
+    pub state_version: StateVersion,
+    /// Demodulated radiance of this frame's results, one per pixel (ignored where `mask` is false).
+    pub radiance: &'a [Vec3],
+    /// Whether this frame has a result for the pixel.
+    pub mask: &'a [bool],
+    pub gbuffer: &'a GBuffer,
+}
+
+impl FrameInputs<'_> {
+    /// Checks sizes and that every calculated radiance is finite and non-negative.
+    pub fn validate(&self, width: u32, height: u32) -> Result<(), ReconstructError> {
+        self.gbuffer.validate(width, height)?;
+        let n = width as usize * height as usize;
+        for (what, len) in [("radiance", self.radiance.len()), ("mask", self.mask.len())] {
+            if len != n {
+                return Err(ReconstructError::InputLength { what, expected: n, got: len });
+            }
+        }
+        let bad = self
+            .radiance
+            .iter()
+            .zip(self.mask)
+            .position(|(v, &m)| m && !(v.is_finite() && v.min_element() >= 0.0));
+        match bad {
+            Some(pixel) => {
+                Err(ReconstructError::BadRadiance { pixel, value: self.radiance[pixel] })
+            }
+            None => Ok(()),
+        }
+    }
+}
+
+/// How a frame was reconstructed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Mode {
+    /// First frame of a scene state: fill, temporal and Gaussian filters.
+    Interacting,
+    /// The state is unchanged since `frames` frames: their average, filled, no filters.
+    Accumulating { frames: u32 },
+}
+
+/// One reconstructed frame.
+#[derive(Clone, Debug)]
+pub struct Reconstructed {
+    pub frame: FrameNo,
+    pub mode: Mode,
+    /// Reconstructed demodulated radiance.
+    pub radiance: Vec<Vec3>,
+    /// Final linear colour: albedo · radiance + emission (for EXR).
+    pub colour: Vec<Vec3>,
+    /// Tonemapped sRGB, 8-bit RGBA (for display and PNG).
+    pub display: Vec<[u8; 4]>,
+}
+
+/// Which implementation to use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum Backend {
+    Cpu,
+    Gpu,
+    /// The GPU when an adapter exists, else the CPU.
+    #[default]
+    Auto,
+}
+
+/// A reconstructor a frame sink can call once per shown frame, on the CPU or the GPU.
+#[derive(Debug)]
+#[allow(clippy::large_enum_variant)] // one per sink, never moved in a hot loop
+pub enum Reconstructor {
+    Cpu(CpuReconstructor),
+    Gpu(Box<GpuReconstructor>),
+}
+
+impl Reconstructor {
+    /// Makes a reconstructor for `width`×`height` frames on the requested backend; `Auto`
+    /// falls back to the CPU (with a log line saying why) when no adapter is usable.
+    pub fn new(
+        width: u32,
+        height: u32,
+        params: ReconstructParams,
+        backend: Backend,
+    ) -> Result<Self, ReconstructError> {
+        let gpu = || -> Result<Self, ReconstructError> {
+            let ctx = GpuContext::new()?;
+            Ok(Self::Gpu(Box::new(GpuReconstructor::new(ctx.into(), width, height, params)?)))
+        };
+        match backend {
+            Backend::Cpu => Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?)),
+            Backend::Gpu => gpu(),
+            Backend::Auto => gpu().or_else(|err| {
+                tracing::info!(cause = %err, "GPU reconstruction unavailable, using the CPU");
+                Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?))
+            }),
+        }
+    }
+
+    /// Reconstructs one frame.
+    pub fn reconstruct(&mut self, inputs: &FrameInputs) -> Result<Reconstructed, ReconstructError> {
+        match self {
+            Self::Cpu(r) => r.reconstruct(inputs),
+            Self::Gpu(r) => r.reconstruct(inputs),
+        }
+    }
+
+    /// "cpu" or the GPU adapter's name.
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Cpu(_) => "cpu".to_string(),
+            Self::Gpu(r) => r.adapter_name().to_string(),
+        }
+    }
+}
