@@ -58,7 +58,7 @@ fn config(master: String, cache: &std::path::Path, secret: Option<&[u8]>) -> Wor
         cache_dir: cache.to_path_buf(),
         name: "test".into(),
         pipeline: 2,
-        renderer: RendererKind::Null,
+        renderer: RendererKind::Null { delay_ms: 0 },
     }
 }
 
@@ -150,7 +150,7 @@ async fn a_worker_authenticates_fetches_assets_renders_and_reconnects() {
                 assert_eq!((r.frame, r.state_version), (11, 3));
                 assert_eq!(r.radiance.len(), table.set_len(r.set));
                 let gridlight_actors::protocol::PackedRadiance::Rgb9e5(px) = &r.radiance;
-                assert!(px.iter().all(|p| decode_rgb9e5(*p) == worker::render::NULL_RADIANCE));
+                assert!(px.iter().all(|p| decode_rgb9e5(*p) == worker::render::null_radiance(11)));
                 answered.push(r.set);
             }
             WorkerMsg::Ready { credits } => assert_eq!(credits, 1),

@@ -24,14 +24,19 @@ use tracing::error;
 use super::shared::Shared;
 use super::WorkerError;
 
-/// Radiance the null renderer returns for every pixel (mid grey, demodulated).
-pub const NULL_RADIANCE: Vec3 = Vec3::splat(0.5);
+/// Radiance the null renderer returns for every pixel of `frame`: grey, and different
+/// for consecutive frames so that tests can tell which frame a pixel came from. Each
+/// value (1 + k/256) is exact in RGB9E5.
+pub fn null_radiance(frame: FrameNo) -> Vec3 {
+    Vec3::splat(1.0 + (frame % 256) as f32 / 256.0)
+}
 
 /// Which renderer a worker runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RendererKind {
-    /// Constant radiance at zero cost, for benchmarking the master.
-    Null,
+    /// Constant radiance ([`null_radiance`]) for benchmarking the master; `delay_ms`
+    /// simulates render time for fault-injection tests (0 in benchmarks).
+    Null { delay_ms: u32 },
 }
 
 /// One job with the scene state it names.
@@ -104,7 +109,12 @@ impl Renderer {
             ))
         })?;
         let radiance = match self.kind {
-            RendererKind::Null => vec![encode_rgb9e5(NULL_RADIANCE); pixels.len()],
+            RendererKind::Null { delay_ms } => {
+                if delay_ms > 0 {
+                    std::thread::sleep(std::time::Duration::from_millis(delay_ms.into()));
+                }
+                vec![encode_rgb9e5(null_radiance(job.frame)); pixels.len()]
+            }
         };
         Ok(JobResult {
             frame: job.frame,
