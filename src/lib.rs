@@ -3,6 +3,9 @@
 //! # Layout
 //! - [`assets`]: loaded meshes, textures and environment maps.
 //! - [`shapes`]: meshes of the built-in shapes (quad, cube, sphere).
+//! - [`scene`]: scene files (TOML), loading them into a scene state and assets, the
+//!   asset search path and the asset manifest.
+//! - [`image_io`]: tonemapping and writing PNG/EXR images.
 //! - [`cli`]: the command line (clap), one module per subcommand.
 //! - [`children`]: child processes killed with their parent (the demo's workers).
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
@@ -16,7 +19,9 @@ pub mod assets;
 pub mod children;
 pub mod cli;
 pub mod gpu;
+pub mod image_io;
 pub mod reconstruct;
+pub mod scene;
 pub mod shapes;
 pub mod worker;
 

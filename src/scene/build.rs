@@ -1,0 +1,499 @@
+//! The build step: a parsed [`SceneFile`] becomes a [`SceneState`] plus its loaded [`Assets`].
+//!
+//! Every value is checked here (finite, in range, names that exist), so that each error can
+//! name the key it came from. OBJ meshes are read once per file; their MTL materials are
+//! appended to the state's materials after the scene's named ones, unless an object
+//! overrides them.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::{EulerRot, Quat, Vec3};
+use gridlight_actors::state::{
+    Camera, Environment, Geometry, Light, Material, MaterialId, MaterialKind, Object,
+    RenderSettings, Resolution, SceneState, Transform,
+};
+
+use super::description::*;
+use super::error::{AssetError, Problem, SceneError};
+use super::loader::{load_albedo_texture, load_environment};
+use super::obj::read_obj;
+use super::search::{check_asset_path, AssetResolver};
+use super::{mtl, LoadedScene};
+use crate::assets::Assets;
+use crate::shapes;
+
+/// Largest accepted image side in pixels.
+pub const MAX_RESOLUTION: u32 = 16384;
+/// Largest accepted path length.
+pub const MAX_DEPTH: u32 = 1024;
+/// Name of the material given to faces and shapes that have none.
+pub const DEFAULT_MATERIAL: &str = "default";
+
+/// Builds the state and loads its assets; `path` is the scene file (for messages).
+pub fn build(
+    file: &SceneFile,
+    path: &Path,
+    resolver: &dyn AssetResolver,
+) -> Result<LoadedScene, SceneError> {
+    let mut b = Builder { path, resolver, assets: Assets::default(), materials: Vec::new() };
+    let resolution = b.resolution(&file.resolution)?;
+    let camera = b.camera(&file.camera)?;
+    let render = b.render(&file.render)?;
+    let mut names = HashMap::new();
+    for (i, m) in file.materials.iter().enumerate() {
+        let key = format!("materials[{i}]");
+        let material = b.material(m, &key)?;
+        if names.insert(material.name.clone(), b.materials.len() as MaterialId).is_some() {
+            return Err(
+                b.invalid(format!("{key}.name"), format!("duplicate material name `{}`", m.name))
+            );
+        }
+        b.materials.push((material, format!("{key}.texture")));
+    }
+    let mut objects = Vec::with_capacity(file.objects.len());
+    let mut mtl_ids: HashMap<String, Vec<MaterialId>> = HashMap::new();
+    for (i, o) in file.objects.iter().enumerate() {
+        let object = b.object(o, i, &mut names, &mut mtl_ids)?;
+        if objects.iter().any(|x: &Object| x.name == object.name) {
+            return Err(b.invalid(
+                format!("objects[{i}].name"),
+                format!("duplicate object name `{}`", object.name),
+            ));
+        }
+        objects.push(object);
+    }
+    let lights = file
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| b.light(l, &format!("lights[{i}]")))
+        .collect::<Result<Vec<_>, _>>()?;
+    let environment = file.environment.as_ref().map(|e| b.environment(e)).transpose()?;
+    b.load_textures()?;
+    let state = SceneState {
+        version: 0,
+        seed: file.seed,
+        resolution,
+        camera,
+        objects,
+        materials: b.materials.into_iter().map(|(m, _)| m).collect(),
+        lights,
+        environment,
+        render,
+    };
+    Ok(LoadedScene { state, assets: b.assets })
+}
+
+struct Builder<'a> {
+    path: &'a Path,
+    resolver: &'a dyn AssetResolver,
+    assets: Assets,
+    /// The state's materials, each with the key its texture came from.
+    materials: Vec<(Material, String)>,
+}
+
+impl Builder<'_> {
+    fn invalid(&self, key: impl Into<String>, what: impl Into<String>) -> SceneError {
+        SceneError::new(self.path, key, Problem::Invalid(what.into()))
+    }
+
+    fn asset(&self, key: impl Into<String>, err: impl Into<AssetError>) -> SceneError {
+        SceneError::new(self.path, key, Problem::Asset(err.into()))
+    }
+
+    fn vec3(&self, v: [f32; 3], key: &str) -> Result<Vec3, SceneError> {
+        let v = Vec3::from(v);
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.invalid(key, "value is not finite (NaN or infinity)"))
+        }
+    }
+
+    fn scalar(&self, v: f32, key: &str) -> Result<f32, SceneError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.invalid(key, "value is not finite (NaN or infinity)"))
+        }
+    }
+
+    fn colour(&self, v: [f32; 3], key: &str) -> Result<Vec3, SceneError> {
+        let v = self.vec3(v, key)?;
+        if v.min_element() < 0.0 {
+            return Err(self.invalid(key, format!("colour {v} has a negative component")));
+        }
+        Ok(v)
+    }
+
+    fn direction(&self, v: [f32; 3], key: &str) -> Result<Vec3, SceneError> {
+        self.vec3(v, key)?
+            .try_normalize()
+            .ok_or_else(|| self.invalid(key, "direction has zero length"))
+    }
+
+    fn resolution(&self, r: &ResolutionDesc) -> Result<Resolution, SceneError> {
+        for (v, key) in [(r.width, "resolution.width"), (r.height, "resolution.height")] {
+            if v == 0 || v > MAX_RESOLUTION {
+                return Err(self.invalid(key, format!("{v} is not in 1..={MAX_RESOLUTION}")));
+            }
+        }
+        Ok(Resolution { width: r.width, height: r.height })
+    }
+
+    fn camera(&self, c: &CameraDesc) -> Result<Camera, SceneError> {
+        let position = self.vec3(c.position, "camera.position")?;
+        let look_at = self.vec3(c.look_at, "camera.look_at")?;
+        let up = self.direction(c.up, "camera.up")?;
+        let view = (look_at - position)
+            .try_normalize()
+            .ok_or_else(|| self.invalid("camera.look_at", "equals camera.position"))?;
+        if view.cross(up).length() < 1e-4 {
+            return Err(self.invalid("camera.up", "is parallel to the viewing direction"));
+        }
+        let vfov = self.scalar(c.vfov, "camera.vfov")?;
+        if !(vfov > 0.0 && vfov < 180.0) {
+            return Err(self.invalid("camera.vfov", format!("{vfov} degrees is not in (0, 180)")));
+        }
+        let aperture = self.scalar(c.aperture, "camera.aperture")?;
+        if aperture < 0.0 {
+            return Err(self.invalid("camera.aperture", "must not be negative"));
+        }
+        let focus_distance = match c.focus_distance {
+            Some(d) if self.scalar(d, "camera.focus_distance")? <= 0.0 => {
+                return Err(self.invalid("camera.focus_distance", "must be positive"));
+            }
+            Some(d) => d,
+            None => (look_at - position).length(),
+        };
+        Ok(Camera { position, look_at, up, vfov_deg: vfov, aperture, focus_distance })
+    }
+
+    fn render(&self, r: &RenderDesc) -> Result<RenderSettings, SceneError> {
+        if r.max_depth == 0 || r.max_depth > MAX_DEPTH {
+            return Err(self.invalid(
+                "render.max_depth",
+                format!("{} is not in 1..={MAX_DEPTH}", r.max_depth),
+            ));
+        }
+        if r.spp == 0 {
+            return Err(self.invalid("render.spp", "must be at least 1"));
+        }
+        Ok(RenderSettings { max_depth: r.max_depth, spp: r.spp })
+    }
+
+    fn material(&self, m: &MaterialDesc, key: &str) -> Result<Material, SceneError> {
+        if m.name.trim().is_empty() {
+            return Err(self.invalid(format!("{key}.name"), "must not be empty"));
+        }
+        let base_color = self.colour(m.base_color, &format!("{key}.base_color"))?;
+        let emission = self.colour(m.emission, &format!("{key}.emission"))?;
+        let roughness = self.scalar(m.roughness, &format!("{key}.roughness"))?;
+        if !(0.0..=1.0).contains(&roughness) {
+            return Err(
+                self.invalid(format!("{key}.roughness"), format!("{roughness} is not in [0, 1]"))
+            );
+        }
+        let ior = self.scalar(m.ior, &format!("{key}.ior"))?;
+        if !(1.0..=4.0).contains(&ior) {
+            return Err(self.invalid(format!("{key}.ior"), format!("{ior} is not in [1, 4]")));
+        }
+        if let Some(t) = &m.texture {
+            check_asset_path(t).map_err(|e| self.asset(format!("{key}.texture"), e))?;
+        }
+        let kind = match m.kind {
+            KindDesc::Diffuse => MaterialKind::Diffuse,
+            KindDesc::Conductor => MaterialKind::Conductor,
+            KindDesc::Glossy => MaterialKind::Glossy,
+            KindDesc::Dielectric => MaterialKind::Dielectric,
+        };
+        Ok(Material {
+            name: m.name.clone(),
+            kind,
+            base_color,
+            base_color_texture: m.texture.clone(),
+            roughness,
+            ior,
+            emission,
+        })
+    }
+
+    /// The id of the default grey material, added on first use.
+    fn default_material(&mut self, names: &mut HashMap<String, MaterialId>) -> MaterialId {
+        *names.entry(DEFAULT_MATERIAL.to_owned()).or_insert_with(|| {
+            let material = Material {
+                name: DEFAULT_MATERIAL.to_owned(),
+                kind: MaterialKind::Diffuse,
+                base_color: Vec3::splat(0.8),
+                base_color_texture: None,
+                roughness: 1.0,
+                ior: 1.5,
+                emission: Vec3::ZERO,
+            };
+            self.materials.push((material, String::new()));
+            self.materials.len() as MaterialId - 1
+        })
+    }
+
+    fn object(
+        &mut self,
+        o: &ObjectDesc,
+        i: usize,
+        names: &mut HashMap<String, MaterialId>,
+        mtl_ids: &mut HashMap<String, Vec<MaterialId>>,
+    ) -> Result<Object, SceneError> {
+        let key = format!("objects[{i}]");
+        let whole = o
+            .material
+            .as_deref()
+            .map(|m| self.named(names, m, format!("{key}.material")))
+            .transpose()?;
+        let transform = self.transform(&o.transform, &format!("{key}.transform"))?;
+        let (geometry, materials, default_name) = match (&o.mesh, o.shape) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(
+                    self.invalid(key, "give exactly one of `mesh` (an OBJ asset) and `shape`")
+                );
+            }
+            (None, Some(shape)) => {
+                if !o.materials.is_empty() {
+                    return Err(self.invalid(
+                        format!("{key}.materials"),
+                        "built-in shapes have no MTL materials to override; use `material`",
+                    ));
+                }
+                let geometry = match shape {
+                    ShapeDesc::Quad => Geometry::Quad,
+                    ShapeDesc::Cube => Geometry::Cube,
+                    ShapeDesc::Sphere => {
+                        let subdivisions = o.subdivisions.unwrap_or(DEFAULT_SPHERE_SUBDIVISIONS);
+                        if subdivisions > shapes::MAX_SPHERE_SUBDIVISIONS {
+                            return Err(self.invalid(
+                                format!("{key}.subdivisions"),
+                                format!(
+                                    "{subdivisions} is above the maximum {}",
+                                    shapes::MAX_SPHERE_SUBDIVISIONS
+                                ),
+                            ));
+                        }
+                        Geometry::Sphere { subdivisions }
+                    }
+                };
+                if o.subdivisions.is_some() && shape != ShapeDesc::Sphere {
+                    return Err(self
+                        .invalid(format!("{key}.subdivisions"), "only spheres have subdivisions"));
+                }
+                if !self.assets.meshes.contains_key(&geometry) {
+                    let mesh = shapes::mesh(&geometry).expect("built-in shape");
+                    self.assets.meshes.insert(geometry.clone(), Arc::new(mesh));
+                }
+                let id = match whole {
+                    Some(id) => id,
+                    None => self.default_material(names),
+                };
+                let name = format!("{}{i}", format!("{shape:?}").to_lowercase());
+                (geometry, vec![id], name)
+            }
+            (Some(mesh), None) => {
+                if o.subdivisions.is_some() {
+                    return Err(self
+                        .invalid(format!("{key}.subdivisions"), "only spheres have subdivisions"));
+                }
+                let mesh_key = format!("{key}.mesh");
+                let geometry = Geometry::Obj { path: mesh.clone() };
+                if !mtl_ids.contains_key(mesh) {
+                    let data =
+                        read_obj(mesh, self.resolver).map_err(|e| self.asset(&mesh_key, e))?;
+                    let mut ids = Vec::with_capacity(data.materials.len());
+                    for m in &data.materials {
+                        let name = format!("{mesh}:{}", m.name);
+                        self.materials.push((mtl::convert(m, mesh, name), mesh_key.clone()));
+                        ids.push(self.materials.len() as MaterialId - 1);
+                    }
+                    mtl_ids.insert(mesh.clone(), ids);
+                    self.assets.meshes.insert(geometry.clone(), Arc::new(data.mesh));
+                }
+                let file_ids = &mtl_ids[mesh];
+                let mtl_names: Vec<String> =
+                    file_ids.iter().map(|&id| self.materials[id as usize].0.name.clone()).collect();
+                let mut slots: Vec<MaterialId> = match whole {
+                    Some(id) => vec![id; file_ids.len() + 1],
+                    None => {
+                        let mut s = file_ids.clone();
+                        s.push(self.default_material(names));
+                        s
+                    }
+                };
+                for (mtl_name, target) in &o.materials {
+                    let k = format!("{key}.materials.{mtl_name}");
+                    let slot = mtl_names
+                        .iter()
+                        .position(|n| {
+                            n.strip_prefix(mesh.as_str()).and_then(|n| n.strip_prefix(':'))
+                                == Some(mtl_name.as_str())
+                        })
+                        .ok_or_else(|| {
+                            self.invalid(
+                                k.clone(),
+                                format!("`{mesh}` has no MTL material `{mtl_name}`"),
+                            )
+                        })?;
+                    slots[slot] = self.named(names, target, k)?;
+                }
+                let stem =
+                    mesh.rsplit('/').next().unwrap_or(mesh).trim_end_matches(".obj").to_owned();
+                (geometry, slots, stem)
+            }
+        };
+        Ok(Object {
+            name: o.name.clone().unwrap_or(default_name),
+            geometry,
+            transform,
+            materials,
+            visible: o.visible,
+        })
+    }
+
+    /// The id of the scene material called `name`.
+    fn named(
+        &self,
+        names: &HashMap<String, MaterialId>,
+        name: &str,
+        key: String,
+    ) -> Result<MaterialId, SceneError> {
+        names.get(name).copied().ok_or_else(|| {
+            let mut known: Vec<_> = names.keys().map(String::as_str).collect();
+            known.sort_unstable();
+            self.invalid(
+                key,
+                format!("unknown material `{name}` (scene materials: {})", known.join(", ")),
+            )
+        })
+    }
+
+    fn transform(&self, t: &TransformDesc, key: &str) -> Result<Transform, SceneError> {
+        let translation = self.vec3(t.translation, &format!("{key}.translation"))?;
+        let rotation = match (t.rotation, t.axis, t.angle) {
+            (None, None, None) => Quat::IDENTITY,
+            (Some(euler), None, None) => {
+                let [x, y, z] =
+                    self.vec3(euler, &format!("{key}.rotation"))?.to_array().map(f32::to_radians);
+                Quat::from_euler(EulerRot::ZYX, z, y, x)
+            }
+            (None, Some(axis), Some(angle)) => {
+                let axis = self.direction(axis, &format!("{key}.axis"))?;
+                Quat::from_axis_angle(
+                    axis,
+                    self.scalar(angle, &format!("{key}.angle"))?.to_radians(),
+                )
+            }
+            _ => {
+                return Err(self.invalid(
+                    key,
+                    "give either `rotation` (Euler degrees) or both `axis` and `angle`",
+                ));
+            }
+        };
+        let scale_key = format!("{key}.scale");
+        let scale = self.vec3(t.scale.0, &scale_key)?;
+        if scale.abs().min_element() < 1e-12 {
+            return Err(self.invalid(scale_key, "scale must not be zero"));
+        }
+        Ok(Transform { translation, rotation, scale })
+    }
+
+    fn light(&self, l: &LightDesc, key: &str) -> Result<Light, SceneError> {
+        let k = |field: &str| format!("{key}.{field}");
+        Ok(match *l {
+            LightDesc::Point { position, intensity } => Light::Point {
+                position: self.vec3(position, &k("position"))?,
+                intensity: self.colour(intensity, &k("intensity"))?,
+            },
+            LightDesc::Spot { position, look_at, intensity, inner, outer } => {
+                let position = self.vec3(position, &k("position"))?;
+                let target = self.vec3(look_at, &k("look_at"))?;
+                let direction = (target - position)
+                    .try_normalize()
+                    .ok_or_else(|| self.invalid(k("look_at"), "equals the light's position"))?;
+                let inner = self.scalar(inner, &k("inner"))?;
+                let outer = self.scalar(outer, &k("outer"))?;
+                if !(0.0 <= inner && inner <= outer && outer > 0.0 && outer < 180.0) {
+                    return Err(self.invalid(
+                        k("outer"),
+                        format!("cone angles need 0 <= inner ({inner}) <= outer ({outer}) < 180"),
+                    ));
+                }
+                Light::Spot {
+                    position,
+                    direction,
+                    intensity: self.colour(intensity, &k("intensity"))?,
+                    inner_deg: inner,
+                    outer_deg: outer,
+                }
+            }
+            LightDesc::Sun { direction, irradiance, angular_radius } => {
+                let radius = self.scalar(angular_radius, &k("angular_radius"))?;
+                if !(radius > 0.0 && radius <= 45.0) {
+                    return Err(self.invalid(
+                        k("angular_radius"),
+                        format!("{radius} degrees is not in (0, 45]"),
+                    ));
+                }
+                // Radiance of a uniform disc that delivers `irradiance` at normal incidence.
+                let solid_angle = std::f32::consts::TAU * (1.0 - radius.to_radians().cos());
+                Light::Sun {
+                    direction: self.direction(direction, &k("direction"))?,
+                    radiance: self.colour(irradiance, &k("irradiance"))? / solid_angle,
+                    angular_radius_deg: radius,
+                }
+            }
+            LightDesc::Quad { corner, edge_u, edge_v, radiance } => {
+                let edge_u = self.vec3(edge_u, &k("edge_u"))?;
+                let edge_v = self.vec3(edge_v, &k("edge_v"))?;
+                if edge_u.cross(edge_v).length() < 1e-12 {
+                    return Err(self
+                        .invalid(k("edge_v"), "edges are zero or parallel: the quad has no area"));
+                }
+                Light::Quad {
+                    corner: self.vec3(corner, &k("corner"))?,
+                    edge_u,
+                    edge_v,
+                    radiance: self.colour(radiance, &k("radiance"))?,
+                }
+            }
+        })
+    }
+
+    fn environment(&mut self, e: &EnvironmentDesc) -> Result<Environment, SceneError> {
+        let color = self.colour(e.color, "environment.color")?;
+        let intensity = self.scalar(e.intensity, "environment.intensity")?;
+        if intensity < 0.0 {
+            return Err(self.invalid("environment.intensity", "must not be negative"));
+        }
+        let rotation_deg = self.scalar(e.rotation, "environment.rotation")?;
+        if let Some(map) = &e.map {
+            let texture = load_environment(map, self.resolver)
+                .map_err(|err| self.asset("environment.map", err))?;
+            self.assets.environments.insert(map.clone(), Arc::new(texture));
+        }
+        Ok(Environment { map: e.map.clone(), color, intensity, rotation_deg })
+    }
+
+    /// Loads every material's albedo texture; errors name the key the texture came from.
+    fn load_textures(&mut self) -> Result<(), SceneError> {
+        for (material, key) in &self.materials {
+            let Some(path) = &material.base_color_texture else { continue };
+            if self.assets.textures.contains_key(path) {
+                continue;
+            }
+            let texture = load_albedo_texture(path, self.resolver).map_err(|err| {
+                let what = format!("material `{}`: texture: {err}", material.name);
+                SceneError::new(self.path, key.clone(), Problem::Invalid(what))
+            })?;
+            self.assets.textures.insert(path.clone(), Arc::new(texture));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,76 @@
+//! Scene files: the TOML format, loading it into a scene state plus asset data, and the
+//! asset plumbing the master and workers share.
+//!
+//! - [`description`]: serde types of the file (STYLE.md item 4: description, then build).
+//! - [`build`]: checks every value and produces a [`SceneState`] and its [`Assets`].
+//! - [`obj`], [`mtl`]: Wavefront OBJ/MTL through tobj, MTL → material heuristics.
+//! - [`loader`]: assets of a state alone (what a worker does with its cache).
+//! - [`manifest`]: every file a state needs, hashed, for workers to fetch.
+//! - [`search`]: the asset search path and the [`AssetResolver`] trait.
+//! - [`error`]: [`SceneError`], which names the file, the key and the problem.
+
+pub mod build;
+pub mod description;
+pub mod error;
+pub mod loader;
+pub mod manifest;
+pub mod mtl;
+pub mod obj;
+pub mod search;
+
+use std::path::Path;
+
+use gridlight_actors::state::SceneState;
+
+use crate::assets::Assets;
+pub use description::SceneFile;
+pub use error::{AssetError, Problem, SceneError};
+pub use loader::load_assets;
+pub use manifest::manifest;
+pub use search::{AssetResolver, AssetSearchPath, ResolveError};
+
+/// A loaded scene: the state a worker renders and the asset data it names.
+#[derive(Debug, Clone)]
+pub struct LoadedScene {
+    pub state: SceneState,
+    pub assets: Assets,
+}
+
+/// Reads, parses and builds the scene file at `path`, finding assets through `resolver`.
+pub fn load(path: &Path, resolver: &dyn AssetResolver) -> Result<LoadedScene, SceneError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| SceneError::new(path, "(file)", Problem::Read(e)))?;
+    let file = parse(path, &text)?;
+    build::build(&file, path, resolver)
+}
+
+/// Parses scene TOML; `path` is only used in error messages.
+pub fn parse(path: &Path, text: &str) -> Result<SceneFile, SceneError> {
+    // Syntax first, so that its errors say so and carry a line and column.
+    if let Err(err) = text.parse::<toml::Table>() {
+        let (line, column) = line_column(text, err.span().map_or(0, |s| s.start));
+        let problem = Problem::Syntax { line, column, message: err.message().trim().to_owned() };
+        return Err(SceneError::new(path, "(syntax)", problem));
+    }
+    serde_path_to_error::deserialize(toml::Deserializer::new(text)).map_err(|err| {
+        let key = match err.path().to_string() {
+            p if p == "." || p.is_empty() => "(top level)".to_owned(),
+            p => p,
+        };
+        let inner = err.into_inner();
+        let (line, _) = line_column(text, inner.span().map_or(0, |s| s.start));
+        SceneError::new(
+            path,
+            key,
+            Problem::Schema { line, message: inner.message().trim().to_owned() },
+        )
+    })
+}
+
+/// 1-based line and column of a byte offset.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
