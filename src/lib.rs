@@ -10,6 +10,7 @@
 //! - [`children`]: child processes killed with their parent (the demo's workers).
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
 //! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
+//! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
 //! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
@@ -18,6 +19,7 @@
 pub mod assets;
 pub mod children;
 pub mod cli;
+pub mod eval;
 pub mod gpu;
 pub mod image_io;
 pub mod reconstruct;
