@@ -5,9 +5,16 @@
 //! frames to a sink trait, and the `gridlight` crate plugs the renderer, the
 //! reconstruction and the window into it (DESIGN.md, Layout).
 
+pub mod accumulate;
 pub mod auth;
 pub mod codec;
+pub mod edit;
+pub mod frame_table;
+pub mod job_queue;
 pub mod packing;
 pub mod protocol;
+pub mod script;
 pub mod sets;
 pub mod state;
+pub mod stats;
+pub mod wait_heuristic;

@@ -1,0 +1,298 @@
+//! Frames in flight (paper §4.1): pure logic behind the frame assembler actor.
+//!
+//! A result is accepted only for a frame not yet displayed and a (frame, set) that was
+//! handed out to that very connection and not yet answered; everything else is dropped
+//! and counted as late (its frame was displayed), duplicate (already answered) or
+//! unknown (never handed to that connection, or a frame never scheduled). Accepted
+//! radiance is scattered to the set's pixels at once, so closing a frame is cheap.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use crate::packing::decode_rgb9e5;
+use crate::protocol::{FrameNo, PackedRadiance, SetNo};
+use crate::sets::SetTable;
+use crate::state::{SceneState, StateVersion};
+
+/// Identifies one connection (the `worker_id` of its `Welcome`).
+pub type ConnId = u64;
+
+/// What happened to one result.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Scattered into the frame; `back` results of `total` are in.
+    Accepted {
+        back: u32,
+        total: u32,
+    },
+    Late,
+    Duplicate,
+    Unknown,
+}
+
+/// Counts of dropped results.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Dropped {
+    pub late: u64,
+    pub duplicate: u64,
+    pub unknown: u64,
+}
+
+/// A frame taken out of the table for display.
+#[derive(Debug)]
+pub struct ClosedFrame {
+    pub frame: FrameNo,
+    pub state: Arc<SceneState>,
+    /// Radiance per pixel; meaningful where `mask` is set.
+    pub radiance: Vec<Vec3>,
+    /// Pixels covered by an accepted result of this frame.
+    pub mask: Vec<bool>,
+    pub back: u32,
+    pub total: u32,
+}
+
+#[derive(Debug)]
+struct Slot {
+    state: Arc<SceneState>,
+    /// Connection each set was handed to.
+    holder: Vec<Option<ConnId>>,
+    answered: Vec<bool>,
+    back: u32,
+    /// Allocated on the first accepted result.
+    radiance: Vec<Vec3>,
+    mask: Vec<bool>,
+}
+
+/// The frames scheduled and not yet displayed.
+#[derive(Debug)]
+pub struct FrameTable {
+    sets: Arc<SetTable>,
+    frames: BTreeMap<FrameNo, Slot>,
+    /// Frames up to and including this one were displayed.
+    closed_upto: Option<FrameNo>,
+    dropped: Dropped,
+}
+
+impl FrameTable {
+    pub fn new(sets: Arc<SetTable>) -> Self {
+        Self { sets, frames: BTreeMap::new(), closed_upto: None, dropped: Dropped::default() }
+    }
+
+    /// A fresh table that still refuses frames displayed before (used on restart).
+    pub fn restarted(&self) -> Self {
+        Self {
+            closed_upto: self.closed_upto,
+            dropped: self.dropped,
+            ..Self::new(self.sets.clone())
+        }
+    }
+
+    /// The scheduler queued all sets of `frame` with `state`.
+    pub fn open(&mut self, frame: FrameNo, state: Arc<SceneState>) {
+        if self.is_closed(frame) {
+            return;
+        }
+        let s = self.sets.sets() as usize;
+        self.frames.entry(frame).or_insert(Slot {
+            state,
+            holder: vec![None; s],
+            answered: vec![false; s],
+            back: 0,
+            radiance: Vec::new(),
+            mask: Vec::new(),
+        });
+    }
+
+    /// The scheduler handed `(frame, set)` to `conn`.
+    pub fn handed_out(&mut self, frame: FrameNo, set: SetNo, conn: ConnId) {
+        if let Some(h) = self.frames.get_mut(&frame).and_then(|s| s.holder.get_mut(set as usize)) {
+            *h = Some(conn);
+        }
+    }
+
+    /// Judges one result and, when accepted, scatters its radiance. The caller has
+    /// checked that the radiance holds exactly one pixel per pixel of the set.
+    pub fn accept(
+        &mut self,
+        conn: ConnId,
+        frame: FrameNo,
+        set: SetNo,
+        version: StateVersion,
+        radiance: &PackedRadiance,
+    ) -> Verdict {
+        let verdict = self.judge(conn, frame, set, version, radiance);
+        match verdict {
+            Verdict::Late => self.dropped.late += 1,
+            Verdict::Duplicate => self.dropped.duplicate += 1,
+            Verdict::Unknown => self.dropped.unknown += 1,
+            Verdict::Accepted { .. } => {}
+        }
+        verdict
+    }
+
+    fn judge(
+        &mut self,
+        conn: ConnId,
+        frame: FrameNo,
+        set: SetNo,
+        version: StateVersion,
+        radiance: &PackedRadiance,
+    ) -> Verdict {
+        if self.is_closed(frame) {
+            return Verdict::Late;
+        }
+        let pixels = match self.sets.pixels(set) {
+            Some(p) if p.len() == radiance.len() => p,
+            _ => return Verdict::Unknown,
+        };
+        let Some(slot) = self.frames.get_mut(&frame) else { return Verdict::Unknown };
+        let i = set as usize;
+        if slot.holder[i] != Some(conn) || slot.state.version != version {
+            return Verdict::Unknown;
+        }
+        if slot.answered[i] {
+            return Verdict::Duplicate;
+        }
+        slot.answered[i] = true;
+        slot.back += 1;
+        if slot.radiance.is_empty() {
+            let n = self.sets.resolution().pixels();
+            slot.radiance = vec![Vec3::ZERO; n];
+            slot.mask = vec![false; n];
+        }
+        let PackedRadiance::Rgb9e5(packed) = radiance;
+        for (p, v) in pixels.iter().zip(packed) {
+            slot.radiance[*p as usize] = decode_rgb9e5(*v);
+            slot.mask[*p as usize] = true;
+        }
+        Verdict::Accepted { back: slot.back, total: slot.holder.len() as u32 }
+    }
+
+    /// Takes `frame` out for display; it and every earlier frame count as displayed
+    /// from now on. `None` when the frame was never opened (or already closed).
+    pub fn close(&mut self, frame: FrameNo) -> Option<ClosedFrame> {
+        if self.is_closed(frame) {
+            return None;
+        }
+        self.closed_upto = Some(frame);
+        // Earlier frames still open were passed over: they are displayed too.
+        self.frames.retain(|f, _| *f >= frame);
+        let slot = self.frames.remove(&frame)?;
+        let n = self.sets.resolution().pixels();
+        let (radiance, mask) = if slot.radiance.is_empty() {
+            (vec![Vec3::ZERO; n], vec![false; n])
+        } else {
+            (slot.radiance, slot.mask)
+        };
+        Some(ClosedFrame {
+            frame,
+            state: slot.state,
+            radiance,
+            mask,
+            back: slot.back,
+            total: slot.holder.len() as u32,
+        })
+    }
+
+    /// Jobs back and total of an open frame.
+    pub fn progress(&self, frame: FrameNo) -> Option<(u32, u32)> {
+        self.frames.get(&frame).map(|s| (s.back, s.holder.len() as u32))
+    }
+
+    pub fn dropped(&self) -> Dropped {
+        self.dropped
+    }
+
+    /// Frames currently in flight.
+    pub fn open_frames(&self) -> usize {
+        self.frames.len()
+    }
+
+    fn is_closed(&self, frame: FrameNo) -> bool {
+        self.closed_upto.is_some_and(|c| frame <= c)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::job_queue::tests::state;
+    use crate::packing::{encode_rgb9e5, pack};
+    use crate::protocol::{Partition, SetsConfig};
+    use crate::state::Resolution;
+
+    fn table() -> FrameTable {
+        let sets = SetTable::new(
+            Resolution { width: 8, height: 8 },
+            SetsConfig { sets: 4, partition: Partition::QuasiRandom },
+        )
+        .expect("sets");
+        FrameTable::new(Arc::new(sets))
+    }
+
+    fn radiance(v: f32) -> PackedRadiance {
+        pack(&[Vec3::splat(v); 16]).expect("pack")
+    }
+
+    #[test]
+    fn accepts_a_handed_out_set_once() {
+        let mut t = table();
+        t.open(0, state(3));
+        t.handed_out(0, 1, 7);
+        assert_eq!(t.accept(7, 0, 1, 3, &radiance(2.0)), Verdict::Accepted { back: 1, total: 4 });
+        assert_eq!(t.accept(7, 0, 1, 3, &radiance(2.0)), Verdict::Duplicate);
+        let closed = t.close(0).expect("open frame");
+        assert_eq!(closed.back, 1);
+        let covered: Vec<usize> = (0..64).filter(|p| closed.mask[*p]).collect();
+        assert_eq!(covered.len(), 16);
+        assert!(covered.iter().all(|p| closed.radiance[*p] == Vec3::splat(2.0)));
+        assert_eq!(t.dropped(), Dropped { late: 0, duplicate: 1, unknown: 0 });
+    }
+
+    #[test]
+    fn results_not_handed_to_that_connection_are_unknown() {
+        let mut t = table();
+        t.open(0, state(3));
+        t.handed_out(0, 1, 7);
+        assert_eq!(t.accept(8, 0, 1, 3, &radiance(1.0)), Verdict::Unknown, "other connection");
+        assert_eq!(t.accept(7, 0, 2, 3, &radiance(1.0)), Verdict::Unknown, "set not handed out");
+        assert_eq!(t.accept(7, 0, 1, 4, &radiance(1.0)), Verdict::Unknown, "wrong version");
+        assert_eq!(t.accept(7, 5, 1, 3, &radiance(1.0)), Verdict::Unknown, "frame never opened");
+        assert_eq!(t.accept(7, 0, 9, 3, &radiance(1.0)), Verdict::Unknown, "no such set");
+        let short = PackedRadiance::Rgb9e5(vec![encode_rgb9e5(Vec3::ONE); 3]);
+        assert_eq!(t.accept(7, 0, 1, 3, &short), Verdict::Unknown, "wrong pixel count");
+        assert_eq!(t.dropped().unknown, 6);
+        assert_eq!(t.progress(0), Some((0, 4)));
+    }
+
+    #[test]
+    fn results_for_displayed_frames_are_late_and_never_reach_an_image() {
+        let mut t = table();
+        t.open(0, state(1));
+        t.open(1, state(1));
+        t.handed_out(0, 0, 1);
+        t.handed_out(1, 0, 1);
+        let closed = t.close(1).expect("frame 1");
+        assert!(closed.mask.iter().all(|m| !m));
+        assert_eq!(t.accept(1, 0, 0, 1, &radiance(1.0)), Verdict::Late, "passed-over frame");
+        assert_eq!(t.accept(1, 1, 0, 1, &radiance(1.0)), Verdict::Late);
+        assert!(t.close(0).is_none() && t.close(1).is_none());
+        t.open(1, state(1));
+        assert_eq!(t.open_frames(), 0, "a displayed frame was reopened");
+        assert_eq!(t.dropped().late, 2);
+    }
+
+    #[test]
+    fn restart_keeps_the_displayed_boundary() {
+        let mut t = table();
+        t.open(3, state(1));
+        t.close(3);
+        let mut r = t.restarted();
+        r.open(2, state(1));
+        assert_eq!(r.open_frames(), 0);
+        r.open(4, state(1));
+        assert_eq!(r.progress(4), Some((0, 4)));
+    }
+}

@@ -1,0 +1,208 @@
+//! The job queue (paper §4.2): pure logic behind the scheduler actor.
+//!
+//! When fewer than `threshold` jobs are queued it adds all `S` jobs of a new frame with
+//! the latest scene state; jobs of frames already displayed are discarded; jobs are
+//! handed out front first. A job leaves the queue exactly once: nothing lost is ever
+//! queued again (STYLE.md item 7). At most `max_frames_open` frames exist between the
+//! display and the newest scheduled frame, so fast workers cannot run unboundedly ahead.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use crate::protocol::{FrameNo, SetNo};
+use crate::state::SceneState;
+
+/// One unit of work: render set `set` of frame `frame` with `state`.
+#[derive(Clone, Debug)]
+pub struct Job {
+    pub frame: FrameNo,
+    pub set: SetNo,
+    pub state: Arc<SceneState>,
+}
+
+/// A frame that was just added to the queue.
+#[derive(Clone, Debug)]
+pub struct NewFrame {
+    pub frame: FrameNo,
+    pub state: Arc<SceneState>,
+}
+
+/// Frames × sets waiting to be handed out.
+#[derive(Debug)]
+pub struct JobQueue {
+    sets: u32,
+    threshold: usize,
+    max_frames_open: u64,
+    queue: VecDeque<Job>,
+    /// Number the next scheduled frame gets.
+    next_frame: FrameNo,
+    /// Frames below this were displayed (shown or skipped).
+    first_open: FrameNo,
+    state: Arc<SceneState>,
+}
+
+impl JobQueue {
+    /// An empty queue; the first frame gets number `first_frame`.
+    pub fn new(sets: u32, threshold: usize, state: Arc<SceneState>, first_frame: FrameNo) -> Self {
+        let sets = sets.max(1);
+        let threshold = threshold.max(1);
+        // Enough frames to keep `threshold` jobs queued, plus the one on display.
+        let max_frames_open = threshold.div_ceil(sets as usize) as u64 + 2;
+        Self {
+            sets,
+            threshold,
+            max_frames_open,
+            queue: VecDeque::new(),
+            next_frame: first_frame,
+            first_open: first_frame,
+            state,
+        }
+    }
+
+    /// New frames use `state` from now on; queued jobs keep the state they were made with.
+    pub fn set_state(&mut self, state: Arc<SceneState>) {
+        self.state = state;
+    }
+
+    /// The state new frames get.
+    pub fn state(&self) -> &Arc<SceneState> {
+        &self.state
+    }
+
+    /// Adds whole frames while fewer than `threshold` jobs are queued (and the frame
+    /// window allows); returns the frames added.
+    pub fn top_up(&mut self) -> Vec<NewFrame> {
+        let mut added = Vec::new();
+        while self.queue.len() < self.threshold
+            && self.next_frame - self.first_open < self.max_frames_open
+        {
+            let frame = self.next_frame;
+            self.next_frame += 1;
+            for set in 0..self.sets {
+                self.queue.push_back(Job { frame, set, state: self.state.clone() });
+            }
+            added.push(NewFrame { frame, state: self.state.clone() });
+        }
+        added
+    }
+
+    /// Takes up to `n` jobs from the front.
+    pub fn take(&mut self, n: usize) -> Vec<Job> {
+        let n = n.min(self.queue.len());
+        self.queue.drain(..n).collect()
+    }
+
+    /// `frame` was displayed (shown or skipped): its queued jobs and those of every
+    /// earlier frame are discarded. Returns how many were dropped.
+    pub fn frame_displayed(&mut self, frame: FrameNo) -> usize {
+        self.first_open = self.first_open.max(frame + 1);
+        let before = self.queue.len();
+        self.queue.retain(|j| j.frame > frame);
+        before - self.queue.len()
+    }
+
+    /// Jobs waiting to be handed out.
+    pub fn queued(&self) -> usize {
+        self.queue.len()
+    }
+
+    /// The number the next scheduled frame will get (frames are never renumbered,
+    /// so a restarted scheduler continues from here).
+    pub fn next_frame(&self) -> FrameNo {
+        self.next_frame
+    }
+
+    /// The first frame not yet displayed.
+    pub fn first_open(&self) -> FrameNo {
+        self.first_open
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::state::*;
+    use glam::Vec3;
+    use std::collections::HashMap;
+
+    pub(crate) fn state(version: u64) -> Arc<SceneState> {
+        Arc::new(SceneState {
+            version,
+            seed: 1,
+            resolution: Resolution { width: 8, height: 8 },
+            camera: Camera {
+                position: Vec3::Z,
+                look_at: Vec3::ZERO,
+                up: Vec3::Y,
+                vfov_deg: 45.0,
+                aperture: 0.0,
+                focus_distance: 1.0,
+            },
+            objects: vec![],
+            materials: vec![],
+            lights: vec![],
+            environment: None,
+            render: RenderSettings::default(),
+        })
+    }
+
+    #[test]
+    fn tops_up_whole_frames_below_the_threshold() {
+        let mut q = JobQueue::new(4, 8, state(1), 0);
+        let added = q.top_up();
+        assert_eq!(added.iter().map(|f| f.frame).collect::<Vec<_>>(), vec![0, 1]);
+        assert_eq!(q.queued(), 8);
+        assert!(q.top_up().is_empty(), "added a frame at the threshold");
+        q.take(1);
+        assert_eq!(q.top_up().len(), 1, "one job below the threshold adds a whole frame");
+        assert_eq!(q.queued(), 11);
+    }
+
+    #[test]
+    fn never_more_than_s_jobs_per_frame() {
+        let mut q = JobQueue::new(5, 10, state(1), 0);
+        let mut per_frame: HashMap<FrameNo, Vec<SetNo>> = HashMap::new();
+        for round in 0..50 {
+            q.top_up();
+            for j in q.take(3) {
+                per_frame.entry(j.frame).or_default().push(j.set);
+            }
+            if round % 4 == 3 {
+                let f = q.first_open();
+                q.frame_displayed(f);
+            }
+        }
+        for (frame, sets) in per_frame {
+            let mut s = sets.clone();
+            s.sort_unstable();
+            s.dedup();
+            assert_eq!(s.len(), sets.len(), "frame {frame} handed a set twice");
+            assert!(sets.len() <= 5);
+        }
+    }
+
+    #[test]
+    fn displayed_frames_are_discarded_and_new_state_used() {
+        let mut q = JobQueue::new(2, 4, state(1), 10);
+        q.top_up();
+        assert_eq!(q.frame_displayed(10), 2);
+        assert!(q.take(10).iter().all(|j| j.frame == 11));
+        q.set_state(state(7));
+        let added = q.top_up();
+        assert!(added.iter().all(|f| f.state.version == 7 && f.frame >= 12));
+    }
+
+    #[test]
+    fn frame_window_bounds_how_far_the_queue_runs_ahead() {
+        let mut q = JobQueue::new(2, 4, state(1), 0);
+        // Workers drain everything but the display never moves.
+        for _ in 0..100 {
+            q.top_up();
+            q.take(100);
+        }
+        assert!(q.next_frame() <= 4, "scheduled {} frames with none displayed", q.next_frame());
+        q.frame_displayed(0);
+        q.top_up();
+        assert_eq!(q.next_frame(), 5);
+    }
+}
