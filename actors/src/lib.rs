@@ -6,15 +6,26 @@
 //! reconstruction and the window into it (DESIGN.md, Layout).
 
 pub mod accumulate;
+pub mod assembler;
+pub mod asset_store;
 pub mod auth;
 pub mod codec;
+pub mod connection;
+pub mod counted_io;
+pub mod display;
 pub mod edit;
 pub mod frame_table;
 pub mod job_queue;
+pub mod listener;
+pub mod master;
 pub mod packing;
 pub mod protocol;
+pub mod scene_holder;
+pub mod scheduler;
 pub mod script;
 pub mod sets;
+pub mod sink;
 pub mod state;
 pub mod stats;
+pub mod supervisor;
 pub mod wait_heuristic;

@@ -5,6 +5,7 @@
 //! display when it builds a frame's [`FrameStats`]; nothing else is shared.
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 
 use serde::Serialize;
 
@@ -14,8 +15,9 @@ use crate::state::StateVersion;
 /// Monotonic counters of the whole master run.
 #[derive(Debug, Default)]
 pub struct Counters {
-    pub bytes_in: AtomicU64,
-    pub bytes_out: AtomicU64,
+    /// Shared with every connection's socket wrappers.
+    pub bytes_in: Arc<AtomicU64>,
+    pub bytes_out: Arc<AtomicU64>,
     /// Connections that passed the handshake and have not ended.
     pub workers: AtomicU64,
     pub dropped_late: AtomicU64,

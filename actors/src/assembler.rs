@@ -1,0 +1,163 @@
+//! The frame assembler actor: frames in flight and the results that fill them (§4.1).
+//!
+//! It accepts a result only for a frame not yet displayed and a (frame, set) handed out
+//! to that connection and not yet answered; everything else is dropped and counted.
+//! It reports each frame's progress (Q_t's numerator) to the display and hands a frame
+//! over, once, when the display closes it.
+
+use std::sync::Arc;
+
+use actix::prelude::*;
+
+use crate::frame_table::{ClosedFrame, ConnId, FrameTable, Verdict};
+use crate::protocol::{FrameNo, JobResult};
+use crate::scheduler::{FrameScheduled, JobsHandedOut};
+use crate::sets::SetTable;
+use crate::state::StateVersion;
+use crate::stats::Counters;
+use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+
+/// A connection received a well-formed result (pixel count already checked).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct ResultArrived {
+    pub conn: ConnId,
+    pub result: JobResult,
+}
+
+/// The display takes `frame` out; it and earlier frames are displayed from now on.
+#[derive(Message)]
+#[rtype(result = "Option<ClosedFrame>")]
+pub struct CloseFrame {
+    pub frame: FrameNo,
+}
+
+/// To the display: `back` of `total` jobs of `frame` are in.
+#[derive(Message, Clone, Copy, Debug)]
+#[rtype(result = "()")]
+pub struct FrameProgress {
+    pub frame: FrameNo,
+    pub state_version: StateVersion,
+    pub back: u32,
+    pub total: u32,
+}
+
+/// The frame table and where progress goes.
+pub struct Assembler {
+    table: FrameTable,
+    progress_to: Recipient<FrameProgress>,
+    counters: Arc<Counters>,
+    restarts: RestartTracker,
+}
+
+impl Assembler {
+    pub fn new(
+        sets: Arc<SetTable>,
+        progress_to: Recipient<FrameProgress>,
+        counters: Arc<Counters>,
+        policy: RestartPolicy,
+    ) -> Self {
+        Self {
+            table: FrameTable::new(sets),
+            progress_to,
+            counters,
+            restarts: RestartTracker::new(policy),
+        }
+    }
+}
+
+impl Actor for Assembler {
+    type Context = Context<Self>;
+}
+
+impl Handler<FrameScheduled> for Assembler {
+    type Result = ();
+    fn handle(&mut self, msg: FrameScheduled, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |a| {
+            let version = msg.state.version;
+            a.table.open(msg.frame, msg.state);
+            if let Some((back, total)) = a.table.progress(msg.frame) {
+                a.progress_to.do_send(FrameProgress {
+                    frame: msg.frame,
+                    state_version: version,
+                    back,
+                    total,
+                });
+            }
+        });
+    }
+}
+
+impl Handler<JobsHandedOut> for Assembler {
+    type Result = ();
+    fn handle(&mut self, msg: JobsHandedOut, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |a| {
+            for (frame, set) in msg.jobs {
+                a.table.handed_out(frame, set, msg.conn);
+            }
+        });
+    }
+}
+
+impl Handler<ResultArrived> for Assembler {
+    type Result = ();
+    fn handle(&mut self, msg: ResultArrived, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |a| {
+            let r = &msg.result;
+            let verdict = a.table.accept(msg.conn, r.frame, r.set, r.state_version, &r.radiance);
+            let c = &a.counters;
+            match verdict {
+                Verdict::Accepted { back, total } => {
+                    Counters::add(&c.results_accepted, 1);
+                    a.progress_to.do_send(FrameProgress {
+                        frame: r.frame,
+                        state_version: r.state_version,
+                        back,
+                        total,
+                    });
+                }
+                Verdict::Late => Counters::add(&c.dropped_late, 1),
+                Verdict::Duplicate => Counters::add(&c.dropped_duplicate, 1),
+                Verdict::Unknown => Counters::add(&c.dropped_unknown, 1),
+            }
+            if !matches!(verdict, Verdict::Accepted { .. }) {
+                tracing::debug!(
+                    conn = msg.conn,
+                    frame = r.frame,
+                    set = r.set,
+                    ?verdict,
+                    "result dropped"
+                );
+            }
+        });
+    }
+}
+
+impl Handler<CloseFrame> for Assembler {
+    type Result = Option<ClosedFrame>;
+    fn handle(&mut self, msg: CloseFrame, ctx: &mut Context<Self>) -> Option<ClosedFrame> {
+        let mut out = None;
+        self.guarded(ctx, |a| out = a.table.close(msg.frame));
+        out
+    }
+}
+
+impl Handler<InjectPanic> for Assembler {
+    type Result = ();
+    fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |_| panic!("injected panic in the frame assembler"));
+    }
+}
+
+impl Assembler {
+    /// Runs a handler body; a panic restarts the table (frames in flight are lost and
+    /// will be skipped, displayed frames stay refused) after the policy's back-off.
+    fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self)) {
+        if let Err(msg) = contain(|| f(self)) {
+            let counters = self.counters.clone();
+            if after_panic("frame assembler", &msg, &mut self.restarts, &counters, ctx) {
+                self.table = self.table.restarted();
+            }
+        }
+    }
+}

@@ -1,0 +1,378 @@
+//! The display actor: decides when each frame is shown (§4.3) and hands it to the sink.
+//!
+//! It follows the oldest frame not yet displayed, asks the [`wait_heuristic`] on every
+//! progress report and at the heuristic's deadlines, then closes the frame at the
+//! assembler (late results are refused from then on), tells the scheduler, accumulates
+//! while the state version is unchanged and sends one [`ShownFrame`] per shown frame
+//! to the sink thread. Skipped frames only count.
+//!
+//! [`wait_heuristic`]: crate::wait_heuristic
+
+use std::collections::BTreeMap;
+use std::sync::mpsc::{SyncSender, TrySendError};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use actix::prelude::*;
+
+use crate::accumulate::Accumulator;
+use crate::assembler::{CloseFrame, FrameProgress};
+use crate::frame_table::ClosedFrame;
+use crate::protocol::FrameNo;
+use crate::scheduler::FrameDisplayed;
+use crate::sink::{spawn_sink, FrameSink, ShownFrame, SinkOutcome};
+use crate::stats::{Counters, FrameStats};
+use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
+
+/// Frames handed to the sink thread and not yet shown, at most.
+const SINK_IN_FLIGHT: usize = 2;
+
+/// The sink finished one frame (or failed).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct SinkDone(pub SinkOutcome);
+
+/// Stop showing frames, let the sink finish, then stop the actor system.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct Shutdown;
+
+/// What the master's handle can see of the display, shared with it.
+#[derive(Debug, Default)]
+pub struct Report {
+    pub state: Mutex<ReportState>,
+    pub changed: Condvar,
+}
+
+#[derive(Debug, Default, Clone)]
+pub struct ReportState {
+    pub shown: u64,
+    pub skipped: u64,
+    pub last: Option<FrameStats>,
+    /// The display stopped (frame limit reached, shutdown or sink failure).
+    pub finished: bool,
+    /// Why the master stopped on its own, if it failed.
+    pub error: Option<String>,
+}
+
+/// Progress of a frame not yet displayed.
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    back: u32,
+    total: u32,
+    scheduled_at: Instant,
+}
+
+/// Pacing, the frames being waited on, accumulation and the sink.
+pub struct Display {
+    pacing: Pacing,
+    /// Time the last shown frame took (I_t's denominator).
+    last_frame_time: Duration,
+    pending: BTreeMap<FrameNo, Pending>,
+    /// Frames up to this one were displayed.
+    last_closed: Option<FrameNo>,
+    last_close_at: Instant,
+    /// A CloseFrame is on its way to the assembler.
+    closing: bool,
+    skipped_since_show: u64,
+    shown: u64,
+    max_frames: Option<u64>,
+    accum: Accumulator,
+    /// Heuristic deadline timer.
+    timer: Option<SpawnHandle>,
+    sink: Option<Box<dyn FrameSink>>,
+    sink_tx: Option<SyncSender<ShownFrame>>,
+    sink_thread: Option<JoinHandle<()>>,
+    sink_in_flight: usize,
+    close_to: Recipient<CloseFrame>,
+    displayed_to: Recipient<FrameDisplayed>,
+    counters: Arc<Counters>,
+    report: Arc<Report>,
+    restarts: RestartTracker,
+    finished: bool,
+}
+
+/// Construction parameters of the display.
+pub struct DisplayConfig {
+    pub pacing: Pacing,
+    /// I_t's denominator before the first frame was shown.
+    pub initial_frame_time: Duration,
+    pub max_frames: Option<u64>,
+    pub pixels: usize,
+    pub policy: RestartPolicy,
+}
+
+impl Display {
+    pub fn new(
+        config: DisplayConfig,
+        sink: Box<dyn FrameSink>,
+        close_to: Recipient<CloseFrame>,
+        displayed_to: Recipient<FrameDisplayed>,
+        counters: Arc<Counters>,
+        report: Arc<Report>,
+    ) -> Self {
+        Self {
+            pacing: config.pacing,
+            last_frame_time: config.initial_frame_time,
+            pending: BTreeMap::new(),
+            last_closed: None,
+            last_close_at: Instant::now(),
+            closing: false,
+            skipped_since_show: 0,
+            shown: 0,
+            max_frames: config.max_frames,
+            accum: Accumulator::new(config.pixels),
+            timer: None,
+            sink: Some(sink),
+            sink_tx: None,
+            sink_thread: None,
+            sink_in_flight: 0,
+            close_to,
+            displayed_to,
+            counters,
+            report,
+            restarts: RestartTracker::new(config.policy),
+            finished: false,
+        }
+    }
+}
+
+impl Actor for Display {
+    type Context = Context<Self>;
+
+    fn started(&mut self, ctx: &mut Context<Self>) {
+        let Some(sink) = self.sink.take() else { return };
+        let me = ctx.address();
+        match spawn_sink(sink, SINK_IN_FLIGHT, move |outcome| me.do_send(SinkDone(outcome))) {
+            Ok((tx, thread)) => {
+                self.sink_tx = Some(tx);
+                self.sink_thread = Some(thread);
+            }
+            Err(e) => self.fail(format!("cannot start the frame sink thread: {e}")),
+        }
+    }
+}
+
+impl Handler<FrameProgress> for Display {
+    type Result = ();
+    fn handle(&mut self, msg: FrameProgress, ctx: &mut Context<Self>) {
+        if self.last_closed.is_some_and(|c| msg.frame <= c) {
+            return;
+        }
+        let now = Instant::now();
+        let p = self.pending.entry(msg.frame).or_insert(Pending {
+            back: 0,
+            total: msg.total,
+            scheduled_at: now,
+        });
+        p.back = p.back.max(msg.back);
+        p.total = msg.total;
+        self.evaluate(ctx);
+    }
+}
+
+impl Handler<SinkDone> for Display {
+    type Result = ();
+    fn handle(&mut self, msg: SinkDone, ctx: &mut Context<Self>) {
+        self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
+        match msg.0 {
+            Ok(()) => self.evaluate(ctx),
+            Err(e) => self.fail(e),
+        }
+    }
+}
+
+impl Handler<Shutdown> for Display {
+    type Result = ();
+    fn handle(&mut self, _: Shutdown, _: &mut Context<Self>) {
+        self.finish(None);
+    }
+}
+
+impl Handler<InjectPanic> for Display {
+    type Result = ();
+    fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
+        if let Err(msg) = contain(|| panic!("injected panic in the display")) {
+            self.restart_after(&msg, ctx);
+        }
+    }
+}
+
+impl Display {
+    /// Decides about the oldest frame not yet displayed.
+    fn evaluate(&mut self, ctx: &mut Context<Self>) {
+        if self.closing || self.finished || self.sink_in_flight >= SINK_IN_FLIGHT {
+            return;
+        }
+        let Some((&frame, &p)) = self.pending.iter().next() else { return };
+        let start = p.scheduled_at.max(self.last_close_at);
+        let elapsed = start.elapsed();
+        let decision = match contain(|| {
+            decide(&self.pacing, p.back, p.total, elapsed, self.last_frame_time)
+        }) {
+            Ok(d) => d,
+            Err(msg) => return self.restart_after(&msg, ctx),
+        };
+        if let Some(t) = self.timer.take() {
+            ctx.cancel_future(t);
+        }
+        tracing::trace!(
+            frame,
+            back = p.back,
+            total = p.total,
+            ?elapsed,
+            ?decision,
+            "display decision"
+        );
+        match decision {
+            Decision::Wait { recheck_at } => {
+                let wait = recheck_at.saturating_sub(elapsed).max(Duration::from_micros(100));
+                self.timer = Some(ctx.run_later(wait, |act, ctx| {
+                    act.timer = None;
+                    act.evaluate(ctx);
+                }));
+            }
+            Decision::Show => self.close(frame, false, elapsed, p, ctx),
+            Decision::Skip => self.close(frame, true, elapsed, p, ctx),
+        }
+    }
+
+    /// Takes `frame` from the assembler; shows it (or only counts it when skipped).
+    fn close(
+        &mut self,
+        frame: FrameNo,
+        skip: bool,
+        elapsed: Duration,
+        p: Pending,
+        ctx: &mut Context<Self>,
+    ) {
+        self.closing = true;
+        let i = interaction(elapsed, self.last_frame_time);
+        let q = quality(p.back, p.total);
+        self.close_to
+            .send(CloseFrame { frame })
+            .into_actor(self)
+            .map(move |res, act, ctx| {
+                act.closing = false;
+                act.last_closed = Some(frame);
+                act.last_close_at = Instant::now();
+                act.pending.retain(|f, _| *f > frame);
+                act.displayed_to.do_send(FrameDisplayed { frame });
+                match res {
+                    Ok(Some(closed)) if !skip => {
+                        act.last_frame_time = elapsed;
+                        if let Err(msg) = contain(|| act.show(closed, q, i, elapsed)) {
+                            return act.restart_after(&msg, ctx);
+                        }
+                    }
+                    _ => {
+                        // The skipped frame's time becomes the last frame's time, so that
+                        // when workers slow down I_max grows until frames complete again
+                        // (otherwise a fast past would make every frame skip forever).
+                        act.last_frame_time = elapsed;
+                        act.skipped_since_show += 1;
+                        act.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
+                        act.report.changed.notify_all();
+                        tracing::debug!(frame, back = p.back, total = p.total, "frame skipped");
+                    }
+                }
+                act.evaluate(ctx);
+            })
+            .spawn(ctx);
+    }
+
+    /// Accumulates a closed frame, sends it to the sink and publishes its statistics.
+    fn show(&mut self, closed: ClosedFrame, q: f64, i: f64, elapsed: Duration) {
+        let version = closed.state.version;
+        self.accum.add(version, &closed.radiance, &closed.mask);
+        let (accumulated, accumulated_frames) = self.accum.mean();
+        self.shown += 1;
+        let c = &self.counters;
+        let stats = FrameStats {
+            frame: closed.frame,
+            state_version: version,
+            jobs_back: closed.back,
+            jobs_total: closed.total,
+            q,
+            i,
+            wait_ms: elapsed.as_secs_f64() * 1e3,
+            skipped: std::mem::take(&mut self.skipped_since_show),
+            dropped_late: Counters::get(&c.dropped_late),
+            dropped_duplicate: Counters::get(&c.dropped_duplicate),
+            dropped_unknown: Counters::get(&c.dropped_unknown),
+            workers: Counters::get(&c.workers),
+            bytes_in: Counters::get(&c.bytes_in),
+            bytes_out: Counters::get(&c.bytes_out),
+            shown: self.shown,
+            accumulated_frames: self.accum.frames(),
+        };
+        let frame = ShownFrame {
+            frame: closed.frame,
+            state: closed.state,
+            current: closed.radiance,
+            current_mask: closed.mask,
+            accumulated,
+            accumulated_frames,
+            stats: stats.clone(),
+        };
+        if let Some(tx) = &self.sink_tx {
+            match tx.try_send(frame) {
+                Ok(()) => self.sink_in_flight += 1,
+                // Cannot happen while sink_in_flight bounds the channel; never block here.
+                Err(TrySendError::Full(_)) => {
+                    tracing::warn!(frame = stats.frame, "sink full; frame not shown")
+                }
+                Err(TrySendError::Disconnected(_)) => tracing::warn!("sink thread gone"),
+            }
+        }
+        {
+            let mut r = self.report.state.lock().unwrap_or_else(|p| p.into_inner());
+            r.shown = self.shown;
+            r.last = Some(stats);
+        }
+        self.report.changed.notify_all();
+        if self.max_frames.is_some_and(|m| self.shown >= m) {
+            self.finish(None);
+        }
+    }
+
+    /// Lets the sink finish, publishes the end and stops the actor system.
+    fn finish(&mut self, error: Option<String>) {
+        if self.finished {
+            return;
+        }
+        self.finished = true;
+        self.sink_tx = None; // the sink thread drains what it has, then calls finish
+        if let Some(t) = self.sink_thread.take() {
+            if t.join().is_err() {
+                tracing::error!("frame sink thread panicked");
+            }
+        }
+        {
+            let mut r = self.report.state.lock().unwrap_or_else(|p| p.into_inner());
+            r.finished = true;
+            if error.is_some() {
+                r.error = error;
+            }
+        }
+        self.report.changed.notify_all();
+        System::current().stop();
+    }
+
+    fn fail(&mut self, error: String) {
+        tracing::error!(cause = %error, "stopping the master");
+        self.finish(Some(error));
+    }
+
+    /// After a contained panic: drop the accumulation and wait for the next frame.
+    fn restart_after(&mut self, msg: &str, ctx: &mut Context<Self>) {
+        let counters = self.counters.clone();
+        if after_panic("display", msg, &mut self.restarts, &counters, ctx) {
+            self.accum = Accumulator::new(self.accum.mean().1.len());
+            self.closing = false;
+            ctx.run_later(Duration::ZERO, |act, ctx| act.evaluate(ctx));
+        }
+    }
+}

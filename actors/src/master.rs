@@ -1,0 +1,379 @@
+//! The master's public entry point: [`start`] wires the actors on their own thread
+//! (the window owns the main thread) and returns a [`MasterHandle`] to edit the
+//! scene, watch statistics, inject faults and stop.
+//!
+//! ```text
+//! Listener ─▶ Connection* ─WorkerReady─▶ Scheduler ─FrameScheduled/JobsHandedOut─▶ Assembler
+//!                 ▲ ─ResultArrived──────────────────────────────────────────────▶ │
+//!                 └───────────JobsAssigned── Scheduler ◀─FrameDisplayed─ Display ◀┘ FrameProgress
+//! SceneHolder ─StateChanged─▶ Scheduler;   Display ─ShownFrame─▶ sink thread
+//! ```
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use actix::prelude::*;
+
+use crate::assembler::Assembler;
+use crate::asset_store::AssetStore;
+use crate::connection::{ConnectionConfig, ConnectionLinks};
+use crate::display::{Display, DisplayConfig, Report, ReportState, Shutdown};
+use crate::edit::{Edit, EditError};
+use crate::frame_table::ConnId;
+use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
+use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT};
+use crate::scene_holder::{ApplyEdit, CurrentState, PlayScript, SceneHolder};
+use crate::scheduler::{Scheduler, SchedulerLinks};
+use crate::sets::SetTable;
+use crate::sink::FrameSink;
+use crate::state::{SceneState, StateVersion};
+use crate::stats::Counters;
+use crate::supervisor::{InjectPanic, RestartPolicy};
+
+pub use crate::display::ReportState as MasterReport;
+pub use crate::sink::{ShownFrame, SinkError};
+pub use crate::stats::FrameStats;
+pub use crate::wait_heuristic::{Heuristic, Pacing};
+
+/// Default number of jobs a worker may hold (DESIGN.md decision 7).
+pub const DEFAULT_PIPELINE: u32 = 2;
+/// Default cap on simultaneous connections.
+pub const DEFAULT_MAX_CONNECTIONS: usize = 256;
+/// I_t's denominator before any frame was shown.
+pub const DEFAULT_INITIAL_FRAME_TIME: Duration = Duration::from_millis(250);
+
+/// Everything [`start`] needs besides the scene, its assets and the sink.
+#[derive(Clone, Debug)]
+pub struct MasterConfig {
+    pub listen: SocketAddr,
+    pub sets: SetsConfig,
+    /// k: jobs one worker may hold at once.
+    pub pipeline: u32,
+    pub max_connections: usize,
+    /// Shared secret workers must prove (HMAC over a nonce); `None`: no authentication.
+    pub secret: Option<Vec<u8>>,
+    pub pacing: Pacing,
+    /// Job-queue threshold; `None` means 2 × S.
+    pub queue_threshold: Option<usize>,
+    /// Stop after this many shown frames.
+    pub max_frames: Option<u64>,
+    pub heartbeat: Duration,
+    pub peer_timeout: Duration,
+    pub initial_frame_time: Duration,
+    pub restart: RestartPolicy,
+}
+
+impl MasterConfig {
+    /// Defaults everywhere but the address and the sets.
+    pub fn new(listen: SocketAddr, sets: SetsConfig) -> Self {
+        Self {
+            listen,
+            sets,
+            pipeline: DEFAULT_PIPELINE,
+            max_connections: DEFAULT_MAX_CONNECTIONS,
+            secret: None,
+            pacing: Pacing::default(),
+            queue_threshold: None,
+            max_frames: None,
+            heartbeat: HEARTBEAT_INTERVAL,
+            peer_timeout: PEER_TIMEOUT,
+            initial_frame_time: DEFAULT_INITIAL_FRAME_TIME,
+            restart: RestartPolicy::default(),
+        }
+    }
+}
+
+/// The actors a test can inject a panic into.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActorKind {
+    Scheduler,
+    Assembler,
+    Display,
+    SceneHolder,
+}
+
+/// Errors of the handle's requests.
+#[derive(Debug, thiserror::Error)]
+pub enum MasterError {
+    #[error("the master has stopped")]
+    Stopped,
+    #[error(transparent)]
+    Edit(#[from] EditError),
+}
+
+/// A running master.
+pub struct MasterHandle {
+    local_addr: SocketAddr,
+    system: System,
+    thread: Option<JoinHandle<std::io::Result<()>>>,
+    scene: Addr<SceneHolder>,
+    listener: Addr<Listener>,
+    scheduler: Addr<Scheduler>,
+    assembler: Addr<Assembler>,
+    display: Addr<Display>,
+    report: Arc<Report>,
+    counters: Arc<Counters>,
+}
+
+/// Starts a master listening on `config.listen`; returns once it accepts connections.
+pub fn start(
+    config: MasterConfig,
+    state: SceneState,
+    assets: AssetStore,
+    sink: Box<dyn FrameSink>,
+) -> std::io::Result<MasterHandle> {
+    let invalid = |m: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, m);
+    config.pacing.validate().map_err(invalid)?;
+    if config.pipeline == 0 || config.max_connections == 0 {
+        return Err(invalid("pipeline (k) and max_connections must be at least 1".into()));
+    }
+    let sets =
+        Arc::new(SetTable::new(state.resolution, config.sets).map_err(|e| invalid(e.to_string()))?);
+    let socket = std::net::TcpListener::bind(config.listen)?;
+    socket.set_nonblocking(true)?;
+    let local_addr = socket.local_addr()?;
+    let report = Arc::new(Report::default());
+    let counters = Arc::new(Counters::default());
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (r, c) = (report.clone(), counters.clone());
+    let thread = std::thread::Builder::new().name("gridlight-master".into()).spawn(move || {
+        let system = System::new();
+        let wired =
+            system.block_on(async move { wire(config, state, assets, sink, sets, socket, r, c) });
+        let ok = wired.is_ok();
+        let _ = tx.send(wired.map(|a| (System::current(), a)));
+        if ok {
+            system.run()
+        } else {
+            Ok(())
+        }
+    })?;
+    let (system, actors) = match rx.recv() {
+        Ok(Ok(v)) => v,
+        Ok(Err(e)) => return Err(e),
+        Err(_) => return Err(std::io::Error::other("the master thread ended while starting")),
+    };
+    let Actors { scene, listener, scheduler, assembler, display } = actors;
+    Ok(MasterHandle {
+        local_addr,
+        system,
+        thread: Some(thread),
+        scene,
+        listener,
+        scheduler,
+        assembler,
+        display,
+        report,
+        counters,
+    })
+}
+
+struct Actors {
+    scene: Addr<SceneHolder>,
+    listener: Addr<Listener>,
+    scheduler: Addr<Scheduler>,
+    assembler: Addr<Assembler>,
+    display: Addr<Display>,
+}
+
+/// Creates every actor inside the running system. Contexts are made first so that the
+/// cyclic links (display ⇄ assembler, display → scheduler → assembler) can be wired.
+#[allow(clippy::too_many_arguments)]
+fn wire(
+    config: MasterConfig,
+    state: SceneState,
+    assets: AssetStore,
+    sink: Box<dyn FrameSink>,
+    sets: Arc<SetTable>,
+    socket: std::net::TcpListener,
+    report: Arc<Report>,
+    counters: Arc<Counters>,
+) -> std::io::Result<Actors> {
+    let socket = tokio::net::TcpListener::from_std(socket)?;
+    let state = Arc::new(state);
+    let threshold = config.queue_threshold.unwrap_or(2 * config.sets.sets as usize);
+    let pixels = state.resolution.pixels();
+
+    let display_ctx = Context::<Display>::new();
+    let assembler_ctx = Context::<Assembler>::new();
+    let scheduler_ctx = Context::<Scheduler>::new();
+    let (display, assembler, scheduler) =
+        (display_ctx.address(), assembler_ctx.address(), scheduler_ctx.address());
+
+    let display_config = DisplayConfig {
+        pacing: config.pacing,
+        initial_frame_time: config.initial_frame_time,
+        max_frames: config.max_frames,
+        pixels,
+        policy: config.restart,
+    };
+    display_ctx.run(Display::new(
+        display_config,
+        sink,
+        assembler.clone().recipient(),
+        scheduler.clone().recipient(),
+        counters.clone(),
+        report,
+    ));
+    assembler_ctx.run(Assembler::new(
+        sets.clone(),
+        display.clone().recipient(),
+        counters.clone(),
+        config.restart,
+    ));
+    let links = SchedulerLinks {
+        frames_to: assembler.clone().recipient(),
+        handouts_to: assembler.clone().recipient(),
+    };
+    scheduler_ctx.run(Scheduler::new(
+        config.sets.sets,
+        threshold,
+        state.clone(),
+        links,
+        counters.clone(),
+        config.restart,
+    ));
+    let scene =
+        SceneHolder::new(state, scheduler.clone().recipient(), counters.clone(), config.restart)
+            .start();
+
+    let conn_config = Arc::new(ConnectionConfig {
+        secret: config.secret,
+        sets,
+        assets: Arc::new(assets),
+        pipeline: config.pipeline,
+        heartbeat: config.heartbeat,
+        peer_timeout: config.peer_timeout,
+    });
+    // Connections report their end to the listener, their supervisor.
+    let listener_ctx = Context::<Listener>::new();
+    let listener_addr = listener_ctx.address();
+    let links = ConnectionLinks {
+        ready_to: scheduler.clone().recipient(),
+        left_to: scheduler.clone().recipient(),
+        results_to: assembler.clone().recipient(),
+        ended_to: listener_addr.clone().recipient(),
+    };
+    listener_ctx.run(Listener::new(socket, config.max_connections, conn_config, links, counters));
+    Ok(Actors { scene, listener: listener_addr, scheduler, assembler, display })
+}
+
+impl MasterHandle {
+    /// The address workers connect to (the real port when `listen` used port 0).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local_addr
+    }
+
+    /// Applies an edit to the scene state; answers the new version.
+    pub fn edit(&self, edit: Edit) -> Result<StateVersion, MasterError> {
+        Ok(block_on(self.scene.send(ApplyEdit(edit)))??)
+    }
+
+    /// Plays an interaction script from now on.
+    pub fn play_script(&self, script: Vec<(Duration, Edit)>) {
+        self.scene.do_send(PlayScript(script));
+    }
+
+    /// The current scene state.
+    pub fn state(&self) -> Result<Arc<SceneState>, MasterError> {
+        block_on(self.scene.send(CurrentState))
+    }
+
+    /// Frames shown and skipped so far and the last frame's statistics.
+    pub fn report(&self) -> MasterReport {
+        self.report.state.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// The last shown frame's statistics.
+    pub fn stats(&self) -> Option<FrameStats> {
+        self.report().last
+    }
+
+    /// The run's counters (bytes, workers, dropped results, ...).
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// Ids (`worker_id`s) of the live connections.
+    pub fn connections(&self) -> Result<Vec<ConnId>, MasterError> {
+        block_on(self.listener.send(ListConnections))
+    }
+
+    /// Fault injection: ends connection `id` abruptly. False when it does not exist.
+    pub fn kill_connection(&self, id: ConnId) -> Result<bool, MasterError> {
+        block_on(self.listener.send(KillConnection(id)))
+    }
+
+    /// Fault injection: a panic inside one of connection `id`'s handlers.
+    pub fn panic_connection(&self, id: ConnId) -> Result<bool, MasterError> {
+        block_on(self.listener.send(PanicConnection(id)))
+    }
+
+    /// Fault injection: a panic inside a handler of a core actor.
+    pub fn inject_panic(&self, actor: ActorKind) {
+        match actor {
+            ActorKind::Scheduler => self.scheduler.do_send(InjectPanic),
+            ActorKind::Assembler => self.assembler.do_send(InjectPanic),
+            ActorKind::Display => self.display.do_send(InjectPanic),
+            ActorKind::SceneHolder => self.scene.do_send(InjectPanic),
+        }
+    }
+
+    /// Waits until `n` frames were shown in total; false on timeout or when the master
+    /// finished before.
+    pub fn wait_for_frames(&self, n: u64, timeout: Duration) -> bool {
+        self.wait_until(timeout, |r| r.shown >= n || r.finished).shown >= n
+    }
+
+    /// Waits until the master finished on its own (frame limit or failure).
+    pub fn wait_finished(&self, timeout: Duration) -> bool {
+        self.wait_until(timeout, |r| r.finished).finished
+    }
+
+    fn wait_until(&self, timeout: Duration, done: impl Fn(&ReportState) -> bool) -> ReportState {
+        let deadline = Instant::now() + timeout;
+        let mut r = self.report.state.lock().unwrap_or_else(|p| p.into_inner());
+        while !done(&r) {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            r = self.report.changed.wait_timeout(r, left).unwrap_or_else(|p| p.into_inner()).0;
+        }
+        r.clone()
+    }
+
+    /// Stops cleanly: the sink gets its last frames and `finish`, the threads end.
+    pub fn stop(mut self) -> std::io::Result<MasterReport> {
+        self.shutdown()?;
+        Ok(self.report())
+    }
+
+    fn shutdown(&mut self) -> std::io::Result<()> {
+        let Some(thread) = self.thread.take() else { return Ok(()) };
+        if self.display.try_send(Shutdown).is_err() {
+            self.system.stop();
+        }
+        match thread.join() {
+            Ok(r) => r,
+            Err(_) => Err(std::io::Error::other("the master thread panicked")),
+        }
+    }
+}
+
+impl Drop for MasterHandle {
+    fn drop(&mut self) {
+        if let Err(e) = self.shutdown() {
+            tracing::warn!(cause = %e, "master stopped with an error");
+        }
+    }
+}
+
+/// Waits for an actor's answer from outside the actor system.
+fn block_on<T>(
+    req: impl std::future::Future<Output = Result<T, MailboxError>>,
+) -> Result<T, MasterError> {
+    futures::executor::block_on(req).map_err(|_| MasterError::Stopped)
+}

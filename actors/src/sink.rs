@@ -1,0 +1,87 @@
+//! Where shown frames go: the [`FrameSink`] trait the headless writer, the
+//! reconstruction and the window implement, and the thread that drives it.
+//!
+//! The sink runs on its own thread so that writing files or reconstructing never
+//! blocks the actor system; the display hands it at most a couple of frames at a time
+//! and waits for it (back-pressure) rather than queueing frames without bound.
+
+use std::sync::mpsc::{Receiver, SyncSender};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+use glam::Vec3;
+use thiserror::Error;
+
+use crate::protocol::FrameNo;
+use crate::state::SceneState;
+use crate::stats::FrameStats;
+use crate::supervisor::contain;
+
+/// One frame the display decided to show.
+#[derive(Clone, Debug)]
+pub struct ShownFrame {
+    pub frame: FrameNo,
+    /// The scene state the frame was rendered with.
+    pub state: Arc<SceneState>,
+    /// This frame's results only: demodulated radiance per pixel (zero where not covered).
+    pub current: Vec<Vec3>,
+    /// Pixels covered by a result of this frame.
+    pub current_mask: Vec<bool>,
+    /// Mean radiance per pixel over all shown frames since the last state change.
+    pub accumulated: Vec<Vec3>,
+    /// Number of frames that contributed to each pixel of `accumulated`.
+    pub accumulated_frames: Vec<u32>,
+    pub stats: FrameStats,
+}
+
+/// Why a sink could not take a frame; the master stops when its sink fails.
+#[derive(Debug, Error)]
+pub enum SinkError {
+    #[error("i/o error: {0}")]
+    Io(#[from] std::io::Error),
+    /// The window (or whatever consumes frames) went away.
+    #[error("the frame consumer was closed")]
+    Closed,
+    #[error("{0}")]
+    Other(String),
+}
+
+/// Consumes shown frames, in frame order, on the sink thread.
+pub trait FrameSink: Send + 'static {
+    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError>;
+    /// Called once after the last frame, when the master stops.
+    fn finish(&mut self) {}
+}
+
+/// What the sink thread reports back after each frame.
+pub type SinkOutcome = Result<(), String>;
+
+/// Starts the sink thread: it shows every frame received on the returned sender and
+/// calls `done` after each; when the sender is dropped it calls `finish` and ends.
+pub fn spawn_sink(
+    mut sink: Box<dyn FrameSink>,
+    capacity: usize,
+    done: impl Fn(SinkOutcome) + Send + 'static,
+) -> std::io::Result<(SyncSender<ShownFrame>, JoinHandle<()>)> {
+    let (tx, rx): (SyncSender<ShownFrame>, Receiver<ShownFrame>) =
+        std::sync::mpsc::sync_channel(capacity);
+    let thread = std::thread::Builder::new().name("gridlight-sink".into()).spawn(move || {
+        while let Ok(frame) = rx.recv() {
+            let n = frame.frame;
+            let outcome = match contain(|| sink.show(frame)) {
+                Ok(Ok(())) => Ok(()),
+                Ok(Err(e)) => Err(format!("frame sink failed on frame {n}: {e}")),
+                Err(panic) => Err(format!("frame sink panicked on frame {n}: {panic}")),
+            };
+            let failed = outcome.is_err();
+            done(outcome);
+            if failed {
+                break;
+            }
+        }
+        if let Err(p) = contain(|| sink.finish()) {
+            tracing::error!(cause = %p, "frame sink panicked in finish");
+        }
+    })?;
+    Ok((tx, thread))
+}

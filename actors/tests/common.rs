@@ -1,0 +1,217 @@
+//! Scripted protocol peers and a collecting sink for the master's loopback tests.
+#![allow(dead_code)]
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::time::Duration;
+
+use bytes::BytesMut;
+use glam::{Quat, Vec3};
+use gridlight_actors::auth;
+use gridlight_actors::codec::{to_frame, WorkerCodec};
+use gridlight_actors::master::{MasterConfig, ShownFrame, SinkError};
+use gridlight_actors::packing::pack;
+use gridlight_actors::protocol::*;
+use gridlight_actors::sets::SetTable;
+use gridlight_actors::sink::FrameSink;
+use gridlight_actors::state::*;
+use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
+use tokio_util::codec::Decoder;
+
+pub const W: u32 = 32;
+pub const H: u32 = 24;
+pub const S: u32 = 8;
+
+pub fn sets() -> SetsConfig {
+    SetsConfig { sets: S, partition: Partition::QuasiRandom }
+}
+
+pub fn table() -> SetTable {
+    SetTable::new(Resolution { width: W, height: H }, sets()).expect("sets")
+}
+
+pub fn scene() -> SceneState {
+    SceneState {
+        version: 1,
+        seed: 7,
+        resolution: Resolution { width: W, height: H },
+        camera: Camera {
+            position: Vec3::new(0.0, 1.0, 4.0),
+            look_at: Vec3::new(0.0, 1.0, 0.0),
+            up: Vec3::Y,
+            vfov_deg: 40.0,
+            aperture: 0.0,
+            focus_distance: 1.0,
+        },
+        objects: vec![Object {
+            name: "box".into(),
+            geometry: Geometry::Cube,
+            transform: Transform {
+                translation: Vec3::ZERO,
+                rotation: Quat::IDENTITY,
+                scale: Vec3::ONE,
+            },
+            materials: vec![0],
+            visible: true,
+        }],
+        materials: vec![Material {
+            name: "white".into(),
+            kind: MaterialKind::Diffuse,
+            base_color: Vec3::splat(0.8),
+            base_color_texture: None,
+            roughness: 1.0,
+            ior: 1.5,
+            emission: Vec3::ZERO,
+        }],
+        lights: vec![],
+        environment: None,
+        render: RenderSettings::default(),
+    }
+}
+
+/// A fast configuration on an ephemeral loopback port.
+pub fn config() -> MasterConfig {
+    let mut c = MasterConfig::new("127.0.0.1:0".parse().expect("addr"), sets());
+    c.pacing = Pacing::Heuristic(Heuristic::default());
+    c.initial_frame_time = Duration::from_millis(40);
+    c
+}
+
+/// Passes every shown frame to the test.
+pub struct CollectSink(pub Sender<ShownFrame>);
+
+impl FrameSink for CollectSink {
+    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
+        self.0.send(frame).map_err(|_| SinkError::Closed)
+    }
+}
+
+pub fn collect_sink() -> (Box<dyn FrameSink>, Receiver<ShownFrame>) {
+    let (tx, rx) = channel();
+    (Box::new(CollectSink(tx)), rx)
+}
+
+/// A scripted worker speaking the protocol by hand over a blocking socket.
+pub struct Peer {
+    stream: TcpStream,
+    codec: WorkerCodec,
+    buf: BytesMut,
+}
+
+impl Peer {
+    pub fn connect(addr: SocketAddr) -> Self {
+        let stream = TcpStream::connect(addr).expect("connect");
+        stream.set_read_timeout(Some(Duration::from_secs(10))).expect("timeout");
+        stream.set_nodelay(true).expect("nodelay");
+        Self { stream, codec: WorkerCodec::new(), buf: BytesMut::new() }
+    }
+
+    pub fn send(&mut self, msg: &WorkerMsg) {
+        let frame = to_frame(msg).expect("encode");
+        self.stream.write_all(&frame).expect("send");
+    }
+
+    /// Sends; false when the master went away.
+    pub fn try_send(&mut self, msg: &WorkerMsg) -> bool {
+        to_frame(msg).is_ok_and(|f| self.stream.write_all(&f).is_ok())
+    }
+
+    pub fn send_raw(&mut self, bytes: &[u8]) {
+        self.stream.write_all(bytes).expect("send raw");
+    }
+
+    /// The next message, or `Err` with what happened (EOF, timeout, bad frame).
+    pub fn recv(&mut self) -> Result<MasterMsg, String> {
+        loop {
+            if let Some(m) = self.codec.decode(&mut self.buf).map_err(|e| e.to_string())? {
+                return Ok(m);
+            }
+            let mut chunk = [0u8; 65536];
+            let n = self.stream.read(&mut chunk).map_err(|e| e.to_string())?;
+            if n == 0 {
+                return Err("eof".into());
+            }
+            self.buf.extend_from_slice(&chunk[..n]);
+        }
+    }
+
+    /// Skips heartbeats.
+    pub fn recv_non_heartbeat(&mut self) -> Result<MasterMsg, String> {
+        loop {
+            match self.recv()? {
+                MasterMsg::Heartbeat => continue,
+                m => return Ok(m),
+            }
+        }
+    }
+
+    /// Expects `Rejected` and returns its reason.
+    pub fn expect_rejected(&mut self) -> String {
+        match self.recv_non_heartbeat() {
+            Ok(MasterMsg::Rejected { reason }) => reason,
+            other => panic!("expected Rejected, got {other:?}"),
+        }
+    }
+
+    /// Hello + Auth; returns the Welcome's worker id or the rejection.
+    pub fn handshake(&mut self, secret: Option<&[u8]>) -> Result<u64, String> {
+        self.send(&WorkerMsg::Hello {
+            protocol: PROTOCOL_VERSION,
+            name: "test-peer".into(),
+            cores: 1,
+        });
+        let nonce = match self.recv_non_heartbeat()? {
+            MasterMsg::Challenge { nonce, .. } => nonce,
+            MasterMsg::Rejected { reason } => return Err(reason),
+            m => return Err(format!("unexpected {m:?}")),
+        };
+        self.send(&WorkerMsg::Auth { mac: secret.map(|s| auth::mac(s, &nonce)) });
+        match self.recv_non_heartbeat()? {
+            MasterMsg::Welcome { worker_id, .. } => Ok(worker_id),
+            MasterMsg::Rejected { reason } => Err(reason),
+            m => Err(format!("unexpected {m:?}")),
+        }
+    }
+
+    /// The next job, with the state sent just before it if any.
+    pub fn next_job(
+        &mut self,
+    ) -> Result<(FrameNo, SetNo, StateVersion, Option<SceneState>), String> {
+        let mut state = None;
+        loop {
+            match self.recv_non_heartbeat()? {
+                MasterMsg::State(s) => state = Some(*s),
+                MasterMsg::Job { frame, set, state_version } => {
+                    return Ok((frame, set, state_version, state))
+                }
+                m => return Err(format!("expected a job, got {m:?}")),
+            }
+        }
+    }
+
+    /// Answers a job with constant radiance `value` over the whole set.
+    pub fn answer(
+        &mut self,
+        table: &SetTable,
+        frame: FrameNo,
+        set: SetNo,
+        version: StateVersion,
+        value: f32,
+    ) -> bool {
+        let n = table.set_len(set);
+        let radiance = pack(&vec![Vec3::splat(value); n]).expect("pack");
+        self.try_send(&WorkerMsg::Result(JobResult {
+            frame,
+            set,
+            state_version: version,
+            radiance,
+            render_us: 1,
+        }))
+    }
+}
+
+/// Radiance a null peer sends for `frame`, so a test can tell frames apart in images.
+pub fn frame_value(frame: FrameNo) -> f32 {
+    (frame % 64) as f32 + 1.0
+}
