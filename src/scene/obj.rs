@@ -150,3 +150,56 @@ fn merge_models(
     }
     Ok(mesh)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::search::AssetSearchPath;
+
+    fn write(dir: &Path, name: &str, text: &str) {
+        let file = dir.join(name);
+        std::fs::create_dir_all(file.parent().expect("parent")).expect("mkdir");
+        std::fs::write(file, text).expect("write");
+    }
+
+    #[test]
+    fn slots_follow_mtl_order_with_a_last_slot_for_faces_without_material() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        write(dir.path(), "m/lib.mtl", "newmtl b\nKd 0 0 1\nnewmtl a\nKd 1 0 0\n");
+        // A triangle with no material (none is current yet), a quad with `a`, a triangle
+        // naming an unknown one, a triangle with `b`; negative (relative) indices as the
+        // McGuire files use.
+        let obj = "mtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                   o t\nf 1 2 3\n\
+                   o q\nusemtl a\nf -4 -3 -2 -1\n\
+                   o u\nusemtl nope\nf 1 3 4\n\
+                   o w\nusemtl b\nf 2 3 4\n";
+        write(dir.path(), "m/x.obj", obj);
+        let resolver = AssetSearchPath::from_dirs(vec![dir.path().into()]);
+        let data = read_obj("m/x.obj", &resolver).expect("loads");
+        assert_eq!(data.mtl_assets, vec!["m/lib.mtl".to_owned()]);
+        let names: Vec<&str> = data.materials.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names, ["b", "a"]);
+        assert_eq!(data.mesh.slot_count, 3);
+        assert_eq!(data.mesh.triangle_count(), 5, "the quad is triangulated");
+        assert_eq!(data.mesh.slots, [2, 1, 1, 2, 0]);
+        assert!(data.mesh.normals.is_empty() && data.mesh.uvs.is_empty());
+    }
+
+    #[test]
+    fn missing_mtl_is_an_error_naming_it() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        write(dir.path(), "x.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        let resolver = AssetSearchPath::from_dirs(vec![dir.path().into()]);
+        let err = read_obj("x.obj", &resolver).expect_err("mtl missing").to_string();
+        assert!(err.contains("gone.mtl") && err.contains("not found"), "{err}");
+    }
+
+    #[test]
+    fn an_obj_without_faces_is_rejected() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        write(dir.path(), "x.obj", "v 0 0 0\n");
+        let resolver = AssetSearchPath::from_dirs(vec![dir.path().into()]);
+        assert!(matches!(read_obj("x.obj", &resolver), Err(AssetError::EmptyMesh { .. })));
+    }
+}
