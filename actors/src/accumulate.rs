@@ -6,48 +6,48 @@ use glam::Vec3;
 
 use crate::state::StateVersion;
 
-/// Running per-pixel sums since the last state change.
+/// Running per-pixel means since the last state change.
 #[derive(Debug)]
 pub struct Accumulator {
     version: Option<StateVersion>,
-    sum: Vec<Vec3>,
+    /// Kept as a mean (updated incrementally) so a shown frame only copies it.
+    mean: Vec<Vec3>,
     count: Vec<u32>,
     frames: u32,
 }
 
 impl Accumulator {
     pub fn new(pixels: usize) -> Self {
-        Self { version: None, sum: vec![Vec3::ZERO; pixels], count: vec![0; pixels], frames: 0 }
+        Self { version: None, mean: vec![Vec3::ZERO; pixels], count: vec![0; pixels], frames: 0 }
     }
 
     /// Adds one frame's covered pixels; a different version (or pixel count) resets.
     pub fn add(&mut self, version: StateVersion, radiance: &[Vec3], mask: &[bool]) {
-        if self.version != Some(version) || self.sum.len() != radiance.len() {
+        if self.version != Some(version) || self.mean.len() != radiance.len() {
             self.version = Some(version);
-            self.sum = vec![Vec3::ZERO; radiance.len()];
+            self.mean = vec![Vec3::ZERO; radiance.len()];
             self.count = vec![0; radiance.len()];
             self.frames = 0;
         }
         self.frames += 1;
-        for ((s, c), (r, m)) in
-            self.sum.iter_mut().zip(&mut self.count).zip(radiance.iter().zip(mask))
+        for ((m, c), (r, covered)) in
+            self.mean.iter_mut().zip(&mut self.count).zip(radiance.iter().zip(mask))
         {
-            if *m {
-                *s += *r;
+            if *covered {
                 *c += 1;
+                *m += (*r - *m) / *c as f32;
             }
         }
     }
 
     /// Mean radiance per pixel (zero where nothing arrived) and the per-pixel counts.
     pub fn mean(&self) -> (Vec<Vec3>, Vec<u32>) {
-        let mean = self
-            .sum
-            .iter()
-            .zip(&self.count)
-            .map(|(s, c)| if *c == 0 { Vec3::ZERO } else { *s / *c as f32 })
-            .collect();
-        (mean, self.count.clone())
+        (self.mean.clone(), self.count.clone())
+    }
+
+    /// Number of pixels.
+    pub fn pixels(&self) -> usize {
+        self.mean.len()
     }
 
     /// Frames accumulated since the last state change.

@@ -370,7 +370,7 @@ impl Display {
     fn restart_after(&mut self, msg: &str, ctx: &mut Context<Self>) {
         let counters = self.counters.clone();
         if after_panic("display", msg, &mut self.restarts, &counters, ctx) {
-            self.accum = Accumulator::new(self.accum.mean().1.len());
+            self.accum = Accumulator::new(self.accum.pixels());
             self.closing = false;
             ctx.run_later(Duration::ZERO, |act, ctx| act.evaluate(ctx));
         }

@@ -39,20 +39,23 @@ pub fn encode_rgb9e5(c: Vec3) -> u32 {
     // land far below the smallest shared exponent).
     let floor_log2 = ((max.to_bits() >> 23) & 0xff) as i32 - 127;
     let mut exp = floor_log2.max(-EXP_BIAS - 1) + 1 + EXP_BIAS;
-    let scale_of = |e: i32| 2f32.powi(e - EXP_BIAS - MANTISSA_BITS);
+    // 1 / 2^(exp - 24), built from its bits (exp is in 0..=31, so the power is normal);
+    // powers of two make the product exact, and `as u32` floors non-negative values.
+    let inv_scale = |e: i32| f32::from_bits(((EXP_BIAS + MANTISSA_BITS - e + 127) as u32) << 23);
     // Rounding may carry the largest mantissa to 512: use the next exponent then.
-    if (max / scale_of(exp) + 0.5).floor() as u32 > MANTISSA_MAX {
+    if (max * inv_scale(exp) + 0.5) as u32 > MANTISSA_MAX {
         exp += 1;
     }
-    let scale = scale_of(exp);
-    let m = |v: f32| ((v / scale + 0.5).floor() as u32).min(MANTISSA_MAX);
+    let inv = inv_scale(exp);
+    let m = |v: f32| ((v * inv + 0.5) as u32).min(MANTISSA_MAX);
     m(r) | (m(g) << 9) | (m(b) << 18) | ((exp as u32) << 27)
 }
 
 /// Unpacks one colour; total: every `u32` is a valid finite colour.
 pub fn decode_rgb9e5(p: u32) -> Vec3 {
+    // 2^(exp - 24) built from its bits: exp - 24 is in -24..=7, a normal f32 exponent.
     let exp = (p >> 27) as i32;
-    let scale = 2f32.powi(exp - EXP_BIAS - MANTISSA_BITS);
+    let scale = f32::from_bits(((exp - EXP_BIAS - MANTISSA_BITS + 127) as u32) << 23);
     let m = |shift: u32| ((p >> shift) & MANTISSA_MAX) as f32 * scale;
     Vec3::new(m(0), m(9), m(18))
 }
