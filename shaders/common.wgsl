@@ -10,6 +10,7 @@ struct Params {
     alpha: f32,
     // Position threshold in scene units.
     beta: f32,
+    // Exposure multiplier (2^stops).
     exposure: f32,
     // 1: the scene state changed, restart the running average.
     reset: u32,

@@ -1,6 +1,6 @@
 // Step 5: remodulate the G-buffer albedo, add directly seen emission (linear colour, kept
 // for EXR) and tonemap for display: exposure, ACES filmic (Narkowicz fit), sRGB. The same
-// curve as `reconstruct::tonemap`.
+// curve as `image_io::display_pixel`.
 
 @group(0) @binding(1) var radiance: texture_2d<f32>;
 @group(0) @binding(2) var albedo: texture_2d<f32>;
@@ -14,7 +14,8 @@ fn aces_filmic(x: vec3<f32>) -> vec3<f32> {
     return clamp(num / den, vec3<f32>(0.0), vec3<f32>(1.0));
 }
 
-fn srgb_encode(c: f32) -> f32 {
+fn srgb_encode(x: f32) -> f32 {
+    let c = clamp(x, 0.0, 1.0);
     if (c <= 0.0031308) {
         return 12.92 * c;
     }

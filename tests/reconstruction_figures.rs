@@ -21,7 +21,7 @@ fn quasi_random_loss_is_much_closer_to_the_complete_frame_than_tiles() {
     let mut source = SyntheticSource::new(LOSS_W, LOSS_H);
     let frame = source.frame(0, 1).expect("frame");
     for loss_level in [0.25, 0.5] {
-        let out = loss::run(&frame, LOSS_SETS, loss_level, ReconstructParams::default(), 1.0, 42)
+        let out = loss::run(&frame, LOSS_SETS, loss_level, ReconstructParams::default(), 0.0, 42)
             .expect("loss run");
         let ratio = out.tiles.flip / out.quasi_random.flip;
         println!(

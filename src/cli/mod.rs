@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 
+pub mod eval;
 pub mod render;
 
 /// Interactive path tracing on a desktop grid.
@@ -35,12 +36,16 @@ pub struct GlobalArgs {
 pub enum Command {
     /// Render a scene file to a PNG (tonemapped sRGB) or EXR (linear) image on all local cores.
     Render(render::Args),
+    /// Evaluations that reproduce the paper's findings; JSON lines with `--json`.
+    #[command(subcommand)]
+    Eval(eval::EvalCommand),
 }
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(args) => render::run(args, &cli.global),
+        Command::Eval(cmd) => eval::run(cmd, &cli.global),
     }
 }
 

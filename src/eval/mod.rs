@@ -57,7 +57,7 @@ pub struct Errors {
 }
 
 /// Compares linear colour images: FLIP and SSIM on their tonemapped display values
-/// (`exposure`), RMSE on the linear values.
+/// (`exposure` in stops), RMSE on the linear values.
 pub fn compare(
     reference: &[Vec3],
     test: &[Vec3],
@@ -74,22 +74,4 @@ pub fn compare(
         rmse: metrics::rmse(reference, test),
         ssim: metrics::ssim(&rd, &td, w, h),
     }
-}
-
-/// Writes a linear colour image as a tonemapped sRGB PNG.
-pub fn write_png(
-    path: &std::path::Path,
-    colour: &[Vec3],
-    width: u32,
-    height: u32,
-    exposure: f32,
-) -> image::ImageResult<()> {
-    let bytes: Vec<u8> = colour
-        .iter()
-        .flat_map(|c| {
-            let t = tonemap(*c, exposure);
-            [t.x, t.y, t.z].map(crate::reconstruct::tonemap::to_u8)
-        })
-        .collect();
-    image::save_buffer(path, &bytes, width, height, image::ColorType::Rgb8)
 }

@@ -18,9 +18,9 @@ pub trait FrameSource {
     fn frame(&mut self, view: usize, frame: u64) -> anyhow::Result<FrameData>;
     /// A converged image (linear colour) of `view`, the gold standard.
     fn gold(&mut self, view: usize) -> anyhow::Result<Vec<Vec3>>;
-    /// Exposure for display.
+    /// Exposure for display, in stops.
     fn exposure(&self) -> f32 {
-        1.0
+        0.0
     }
 }
 

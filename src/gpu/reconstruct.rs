@@ -48,7 +48,7 @@ impl Uniforms {
             gauss_radius: c.gauss_radius,
             alpha: c.alpha,
             beta: c.beta,
-            exposure: c.exposure,
+            exposure: crate::reconstruct::tonemap::exposure_scale(c.exposure),
             reset: reset as u32,
             history_weight,
             gauss: c.gauss,

@@ -18,6 +18,7 @@ use glam::Vec3;
 use gridlight_actors::protocol::FrameNo;
 use gridlight_actors::state::StateVersion;
 
+pub mod bench;
 pub mod cpu;
 pub mod discontinuity;
 pub mod gbuffer;

@@ -32,7 +32,7 @@ pub struct ReconstructParams {
     pub sigma: f32,
     /// Number of previous frames blended by the temporal filter; 0 is spatial-only.
     pub history: u32,
-    /// Exposure multiplier applied before the filmic tonemap.
+    /// Exposure in stops applied before the filmic tonemap (as `image_io`).
     pub exposure: f32,
 }
 
@@ -45,7 +45,7 @@ impl Default for ReconstructParams {
             gauss_width: 7,
             sigma: 1.0,
             history: 4,
-            exposure: 1.0,
+            exposure: 0.0,
         }
     }
 }
@@ -75,8 +75,8 @@ impl ReconstructParams {
         if self.history > MAX_HISTORY {
             return bad("history", format!("{} is above {MAX_HISTORY}", self.history));
         }
-        if !(self.exposure.is_finite() && self.exposure > 0.0) {
-            return bad("exposure", format!("{} is not a positive number", self.exposure));
+        if !(self.exposure.is_finite() && self.exposure.abs() <= 32.0) {
+            return bad("exposure", format!("{} stops is not in [-32, 32]", self.exposure));
         }
         Ok(())
     }
@@ -110,7 +110,7 @@ mod tests {
             ReconstructParams { gauss_width: 6, ..Default::default() },
             ReconstructParams { sigma: f32::NAN, ..Default::default() },
             ReconstructParams { history: 9, ..Default::default() },
-            ReconstructParams { exposure: -1.0, ..Default::default() },
+            ReconstructParams { exposure: f32::INFINITY, ..Default::default() },
         ];
         let names = ["alpha", "beta", "radius", "gauss_width", "sigma", "history", "exposure"];
         for (params, name) in cases.iter().zip(names) {

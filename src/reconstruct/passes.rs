@@ -25,6 +25,7 @@ pub struct PassConsts {
     pub beta: f32,
     pub radius: i32,
     pub gauss_radius: i32,
+    /// Exposure in stops.
     pub exposure: f32,
     /// exp(−d²/2σ²) for d = 0, 1, …; the 2-D weight is the product of two entries.
     pub gauss: [f32; GAUSS_TABLE],
@@ -364,6 +365,6 @@ mod tests {
             &mut display,
         );
         assert_eq!(colour[0], Vec3::new(1.0, 0.5, 1.0));
-        assert_eq!(display[0], to_rgba8(colour[0], 1.0));
+        assert_eq!(display[0], to_rgba8(colour[0], 0.0));
     }
 }

@@ -1,46 +1,29 @@
-//! Display encoding of linear colour: exposure, a filmic curve, sRGB.
-//!
-//! The filmic curve is Narkowicz's fit of the ACES reference rendering transform; the same
-//! expressions are in `shaders/remodulate.wgsl` so the GPU path displays the same image.
+//! Display encoding of reconstructed colour, through `crate::image_io` (exposure in
+//! stops, Narkowicz's ACES filmic fit, sRGB) so that the window, PNGs and the GPU pass
+//! (`shaders/remodulate.wgsl`, same expressions) show the same image.
 
 use glam::Vec3;
 
-/// ACES filmic curve (Narkowicz 2015 fit), clamped to [0, 1].
+use crate::image_io::{aces_filmic, display_pixel, linear_to_srgb};
+
+/// The multiplier of an exposure in stops.
 #[inline]
-pub fn aces_filmic(x: Vec3) -> Vec3 {
-    let num = x * (x * 2.51 + Vec3::splat(0.03));
-    let den = x * (x * 2.43 + Vec3::splat(0.59)) + Vec3::splat(0.14);
-    (num / den).clamp(Vec3::ZERO, Vec3::ONE)
+pub fn exposure_scale(stops: f32) -> f32 {
+    stops.exp2()
 }
 
-/// sRGB transfer function (IEC 61966-2-1) of a linear value in [0, 1].
+/// Linear colour → display-referred sRGB in [0, 1] (not quantised; for metrics).
 #[inline]
-pub fn srgb_encode(c: f32) -> f32 {
-    if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
+pub fn tonemap(colour: Vec3, exposure_stops: f32) -> Vec3 {
+    let v = if colour.is_finite() { colour.max(Vec3::ZERO) } else { Vec3::ZERO };
+    aces_filmic(v * exposure_scale(exposure_stops)).to_array().map(linear_to_srgb).into()
 }
 
-/// Linear colour → display-referred sRGB in [0, 1]: exposure, filmic, sRGB.
+/// Tonemapped 8-bit RGBA of a linear colour (as `image_io` writes PNGs).
 #[inline]
-pub fn tonemap(colour: Vec3, exposure: f32) -> Vec3 {
-    let t = aces_filmic((colour * exposure).max(Vec3::ZERO));
-    Vec3::new(srgb_encode(t.x), srgb_encode(t.y), srgb_encode(t.z))
-}
-
-/// Quantises a value in [0, 1] to 8 bits, rounding to nearest (as a unorm store does).
-#[inline]
-pub fn to_u8(v: f32) -> u8 {
-    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
-}
-
-/// Tonemapped 8-bit RGBA of a linear colour.
-#[inline]
-pub fn to_rgba8(colour: Vec3, exposure: f32) -> [u8; 4] {
-    let t = tonemap(colour, exposure);
-    [to_u8(t.x), to_u8(t.y), to_u8(t.z), 255]
+pub fn to_rgba8(colour: Vec3, exposure_stops: f32) -> [u8; 4] {
+    let [r, g, b] = display_pixel(colour, exposure_stops);
+    [r, g, b, 255]
 }
 
 #[cfg(test)]
@@ -49,24 +32,18 @@ mod tests {
 
     #[test]
     fn black_stays_black_and_bright_saturates() {
-        assert_eq!(to_rgba8(Vec3::ZERO, 1.0), [0, 0, 0, 255]);
-        assert_eq!(to_rgba8(Vec3::splat(1e4), 1.0), [255, 255, 255, 255]);
+        assert_eq!(to_rgba8(Vec3::ZERO, 0.0), [0, 0, 0, 255]);
+        assert_eq!(to_rgba8(Vec3::splat(1e4), 0.0), [255, 255, 255, 255]);
     }
 
     #[test]
-    fn curve_is_monotonic_and_exposure_brightens() {
-        let mut last = -1.0;
-        for k in 0..100 {
-            let v = tonemap(Vec3::splat(k as f32 * 0.05), 1.0).x;
-            assert!(v >= last);
-            last = v;
+    fn quantised_and_continuous_agree_and_exposure_brightens() {
+        let c = Vec3::new(0.1, 0.5, 2.0);
+        let t = tonemap(c, 0.0);
+        let q = to_rgba8(c, 0.0);
+        for k in 0..3 {
+            assert!((t[k] * 255.0 - q[k] as f32).abs() <= 0.5 + 1e-3);
         }
-        assert!(tonemap(Vec3::splat(0.2), 2.0).x > tonemap(Vec3::splat(0.2), 1.0).x);
-    }
-
-    #[test]
-    fn srgb_matches_known_values() {
-        assert!((srgb_encode(0.5) - 0.735_356_9).abs() < 1e-5);
-        assert!((srgb_encode(0.001) - 0.012_92).abs() < 1e-7);
+        assert!(tonemap(c, 1.0).x > t.x);
     }
 }

@@ -1,0 +1,145 @@
+//! `gridlight bench reconstruct`: milliseconds per frame of the full pipeline, CPU
+//! reference and GPU passes, on 640×480 analytic inputs with a fraction of pixels lost.
+//!
+//! Every timed frame starts a new scene state, so each runs the whole interacting
+//! pipeline (accumulate, fill, temporal with a full history, Gaussian, remodulate). CPU
+//! time is wall-clock time of `reconstruct`; GPU time comes from timestamps written at the
+//! start of the first pass and the end of the last (uploads and readback excluded; they
+//! are in `gpu_wall_ms`).
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::synthetic::{self, SyntheticView};
+use super::{CpuReconstructor, FrameInputs, GBuffer, ReconstructParams};
+use crate::gpu::{GpuContext, GpuReconstructor};
+
+/// What to measure.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Fraction of pixels without a result in each frame.
+    pub loss: f32,
+    /// Timed frames per implementation (after warm-up frames that fill the history).
+    pub frames: u32,
+    pub params: ReconstructParams,
+    pub cpu: bool,
+    pub gpu: bool,
+}
+
+impl Default for BenchSettings {
+    fn default() -> Self {
+        Self {
+            width: 640,
+            height: 480,
+            loss: 0.25,
+            frames: 20,
+            params: ReconstructParams::default(),
+            cpu: true,
+            gpu: true,
+        }
+    }
+}
+
+/// One benchmark result (one JSON line).
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    pub width: u32,
+    pub height: u32,
+    pub loss: f32,
+    pub frames: u32,
+    /// Median CPU milliseconds per frame; `None` when not measured.
+    pub cpu_ms: Option<f64>,
+    pub cpu_threads: usize,
+    /// Median GPU milliseconds per frame from timestamps; `None` without an adapter or
+    /// timestamp support.
+    pub gpu_ms: Option<f64>,
+    /// Median wall milliseconds per GPU frame including upload and readback.
+    pub gpu_wall_ms: Option<f64>,
+    /// The adapter's name, or why there is none.
+    pub gpu_adapter: String,
+}
+
+struct Inputs {
+    gbuffer: GBuffer,
+    radiance: Vec<Vec3>,
+    masks: Vec<Vec<bool>>,
+}
+
+use glam::Vec3;
+
+fn inputs(s: &BenchSettings) -> Inputs {
+    let gbuffer = synthetic::gbuffer(s.width, s.height, SyntheticView::default());
+    let clean = synthetic::clean_radiance(&gbuffer);
+    let radiance = synthetic::noisy_radiance(&clean, 0.8, 1, 1);
+    let masks = (0..4).map(|k| synthetic::random_mask(gbuffer.len(), 1.0 - s.loss, 3, k)).collect();
+    Inputs { gbuffer, radiance, masks }
+}
+
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    Some(v[v.len() / 2])
+}
+
+/// Runs the benchmark.
+pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
+    let inp = inputs(s);
+    let warmup = s.params.history as u64 + 1;
+    let frame = |k: u64| FrameInputs {
+        frame: k + 1,
+        state_version: k + 1,
+        radiance: &inp.radiance,
+        mask: &inp.masks[k as usize % inp.masks.len()],
+        gbuffer: &inp.gbuffer,
+    };
+    let mut report = BenchReport {
+        width: s.width,
+        height: s.height,
+        loss: s.loss,
+        frames: s.frames,
+        cpu_ms: None,
+        cpu_threads: rayon::current_num_threads(),
+        gpu_ms: None,
+        gpu_wall_ms: None,
+        gpu_adapter: "not measured".into(),
+    };
+    if s.cpu {
+        let mut r = CpuReconstructor::new(s.width, s.height, s.params)?;
+        let mut times = Vec::new();
+        for k in 0..warmup + s.frames as u64 {
+            let t = Instant::now();
+            r.reconstruct(&frame(k))?;
+            if k >= warmup {
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        report.cpu_ms = median(times);
+    }
+    if s.gpu {
+        match GpuContext::new() {
+            Err(err) => report.gpu_adapter = format!("none: {err}"),
+            Ok(ctx) => {
+                report.gpu_adapter =
+                    format!("{} ({:?})", ctx.adapter_info.name, ctx.adapter_info.backend);
+                let mut r = GpuReconstructor::new(ctx.shared(), s.width, s.height, s.params)?;
+                let (mut gpu, mut wall) = (Vec::new(), Vec::new());
+                for k in 0..warmup + s.frames as u64 {
+                    let t = Instant::now();
+                    r.reconstruct(&frame(k))?;
+                    if k >= warmup {
+                        wall.push(t.elapsed().as_secs_f64() * 1e3);
+                        gpu.extend(r.last_gpu_ms());
+                    }
+                }
+                report.gpu_ms = median(gpu);
+                report.gpu_wall_ms = median(wall);
+            }
+        }
+    }
+    Ok(report)
+}
