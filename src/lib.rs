@@ -12,6 +12,7 @@
 //! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
 //! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
 //! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
+//! - [`render`]: the path tracer (BVHs, materials, lights, the per-pixel kernel).
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
 //! `gridlight-actors` crate, which this crate depends on and never the reverse.
@@ -24,6 +25,7 @@ pub mod gpu;
 pub mod image_io;
 pub mod reconstruct;
 pub mod scene;
+pub mod render;
 pub mod shapes;
 pub mod worker;
 

@@ -1,0 +1,112 @@
+//! `gridlight bench trace`: single-thread throughput of the path-tracing kernel.
+//!
+//! Renders every pixel of a scene at the benchmark settings (640×480, max depth
+//! 5, 4 spp unless overridden) with one thread, several times, and reports the
+//! median run as camera paths ("samples") and rays (closest-hit plus shadow
+//! rays) per second per core. Scene BVH construction is not timed.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use gridlight_actors::state::SceneState;
+use serde::Serialize;
+
+use crate::assets::Assets;
+use crate::render::{render_pixels_counted, RenderError, RenderScene, Strategy};
+
+/// The settings of one benchmark run.
+#[derive(Clone, Copy, Debug)]
+pub struct TraceSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    /// Timed repetitions; the median is reported.
+    pub runs: u32,
+}
+
+impl Default for TraceSettings {
+    fn default() -> Self {
+        Self { width: 640, height: 480, spp: 4, max_depth: 5, runs: 3 }
+    }
+}
+
+/// One line of `bench trace --json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct TraceReport {
+    pub scene: String,
+    pub samples_per_second_per_core: f64,
+    pub rays_per_second_per_core: f64,
+    pub triangles: usize,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    /// Median wall-clock seconds of one full-frame render.
+    pub seconds: f64,
+    pub samples: u64,
+    pub rays: u64,
+    pub runs: u32,
+}
+
+/// Benchmarks one scene: the state's resolution and render settings are
+/// replaced by `settings`.
+pub fn bench_scene(
+    name: &str,
+    assets: Arc<Assets>,
+    state: &SceneState,
+    settings: TraceSettings,
+) -> Result<TraceReport, RenderError> {
+    let mut state = state.clone();
+    // Keep the camera's framing when the benchmark changes the resolution.
+    state.resolution.width = settings.width;
+    state.resolution.height = settings.height;
+    state.render.spp = settings.spp;
+    state.render.max_depth = settings.max_depth;
+    let scene = RenderScene::new(assets, &state)?;
+    let pixels: Vec<u32> = (0..state.resolution.pixels() as u32).collect();
+    let mut out = Vec::with_capacity(pixels.len());
+    let mut runs = Vec::new();
+    for run in 0..settings.runs.max(1) {
+        let start = Instant::now();
+        let stats = render_pixels_counted(&scene, run as u64, &pixels, &mut out, Strategy::NeeMis);
+        runs.push((start.elapsed().as_secs_f64(), stats));
+    }
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (seconds, stats) = runs[runs.len() / 2];
+    Ok(TraceReport {
+        scene: name.to_string(),
+        samples_per_second_per_core: stats.samples as f64 / seconds,
+        rays_per_second_per_core: stats.rays as f64 / seconds,
+        triangles: scene.triangle_count(),
+        width: settings.width,
+        height: settings.height,
+        spp: settings.spp,
+        max_depth: settings.max_depth,
+        seconds,
+        samples: stats.samples,
+        rays: stats.rays,
+        runs: settings.runs.max(1),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::testscenes::cornell_box;
+
+    #[test]
+    fn report_counts_every_sample_and_at_least_one_ray_each() {
+        let (assets, state) = cornell_box(640, 480);
+        let settings = TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1 };
+        let r = bench_scene("cornell-box", assets, &state, settings).unwrap();
+        assert_eq!(r.samples, 8 * 6 * 2);
+        assert!(r.rays >= r.samples && r.rays <= r.samples * 2 * 3);
+        assert_eq!(r.triangles, 36);
+        assert!(r.samples_per_second_per_core > 0.0);
+        let json = serde_json::to_value(&r).unwrap();
+        for key in ["scene", "samples_per_second_per_core", "rays_per_second_per_core", "triangles"] {
+            assert!(json.get(key).is_some(), "missing {key}");
+        }
+    }
+}

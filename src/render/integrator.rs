@@ -1,0 +1,366 @@
+//! The path loop: unidirectional path tracing with next-event estimation,
+//! multiple importance sampling (power heuristic) and Russian roulette, plus the
+//! G-buffer probe (`primary_hit`) and picking.
+//!
+//! Depth counts path segments: `max_depth` 5 is the camera ray plus four bounces
+//! (Mitsuba's convention), so light is sampled at vertices 1..max_depth-1 and
+//! emitters are seen up to segment `max_depth`.
+
+use glam::{Vec2, Vec3};
+
+use super::bsdf::Bsdf;
+use super::lights::AreaLight;
+use super::microfacet::Frame;
+use super::sampler::SampleStream;
+use super::RenderScene;
+use super::{MaterialData, PixelSample};
+
+/// Paths survive Russian roulette unconditionally up to this many segments.
+const RR_START_DEPTH: u32 = 3;
+/// Smallest albedo divided out by demodulation.
+const MIN_ALBEDO: f32 = 1e-3;
+
+/// Work counters of one `render_pixels_counted` call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RenderStats {
+    /// Camera paths traced.
+    pub samples: u64,
+    /// Rays cast: closest-hit and shadow rays.
+    pub rays: u64,
+}
+
+/// How paths gather light: both reference strategies must agree on the mean.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Strategy {
+    /// Next-event estimation and BSDF sampling combined with MIS (the default).
+    #[default]
+    NeeMis,
+    /// BSDF sampling only; light is found by hitting emitters (for validation).
+    BsdfOnly,
+}
+
+/// What a ray hit.
+enum Hit<'a> {
+    Surface(Surface<'a>),
+    Light(&'a AreaLight, f32),
+}
+
+/// A resolved surface hit in world space.
+struct Surface<'a> {
+    p: Vec3,
+    /// Unit geometric normal on the triangle's front (winding) side.
+    ng: Vec3,
+    /// Unit shading normal, on the same side as `ng`.
+    ns: Vec3,
+    uv: Vec2,
+    material: &'a MaterialData,
+    object: u32,
+}
+
+#[inline]
+fn closest<'a>(scene: &'a RenderScene, o: Vec3, d: Vec3) -> Option<Hit<'a>> {
+    let hit = scene.tlas.intersect(o, d, f32::INFINITY);
+    let mut tmax = hit.map_or(f32::INFINITY, |h| h.t);
+    let mut light = None;
+    for q in scene.lights.quads() {
+        let edges = super::accel::TriEdges { v0: q.v0.into(), e1: q.e1.into(), e2: q.e2.into() };
+        if let Some((t, ..)) = edges.intersect_parallelogram(o.into(), d.into(), tmax) {
+            tmax = t;
+            light = Some(q);
+        }
+    }
+    if let Some(q) = light {
+        return Some(Hit::Light(q, tmax));
+    }
+    let hit = hit?;
+    let inst = &scene.tlas.instances[hit.instance as usize];
+    let blas = &*inst.blas;
+    let tri = blas.tri(hit.prim);
+    let mesh = &*blas.mesh;
+    let original = blas.original(hit.prim) as usize;
+    let idx = mesh.indices[original];
+    let (u, v) = (hit.u, hit.v);
+    let w = 1.0 - u - v;
+    let ng = Vec3::from(inst.normal_to_world * tri.e1.cross(tri.e2)).normalize();
+    let mut ns = if mesh.normals.is_empty() {
+        ng
+    } else {
+        let [a, b, c] = idx.map(|i| mesh.normals[i as usize]);
+        inst.normal_to_world.mul_vec3(a * w + b * u + c * v).normalize_or(ng)
+    };
+    if ns.dot(ng) < 0.0 {
+        ns = -ns;
+    }
+    let uv = if mesh.uvs.is_empty() {
+        Vec2::ZERO
+    } else {
+        let [a, b, c] = idx.map(|i| mesh.uvs[i as usize]);
+        a * w + b * u + c * v
+    };
+    let slot = mesh.slots.get(original).copied().unwrap_or(0);
+    let material_id = scene.slot_materials[(inst.material_base + slot) as usize];
+    Some(Hit::Surface(Surface {
+        p: o + d * hit.t,
+        ng,
+        ns,
+        uv,
+        material: &scene.materials[material_id as usize],
+        object: inst.object,
+    }))
+}
+
+/// Offsets a ray origin off the surface to the side `dir` leaves towards.
+#[inline]
+fn offset(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
+    let eps = 1e-4 * (1.0 + p.abs().max_element());
+    if ng.dot(dir) >= 0.0 {
+        p + ng * eps
+    } else {
+        p - ng * eps
+    }
+}
+
+/// Power heuristic with β = 2.
+#[inline]
+fn mis(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+#[inline]
+fn albedo_of(material: &MaterialData, uv: Vec2) -> Vec3 {
+    match &material.texture {
+        Some(t) => t.sample(uv) * material.base_color,
+        None => material.base_color,
+    }
+}
+
+/// One camera path: its demodulated radiance and G-buffer values.
+#[inline]
+fn trace_path(
+    scene: &RenderScene,
+    stream: &mut SampleStream,
+    pixel_pos: Vec2,
+    max_depth: u32,
+    strategy: Strategy,
+    rays: &mut u64,
+) -> PixelSample {
+    let nee = strategy == Strategy::NeeMis;
+    let lights = &scene.lights;
+    let cam = stream.next4();
+    let (mut o, mut d) =
+        scene.camera.ray(pixel_pos + Vec2::new(cam[0], cam[1]), Vec2::new(cam[2], cam[3]));
+    let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
+    let mut throughput = Vec3::ONE;
+    let mut indirect = Vec3::ZERO;
+    let mut prev_pdf = 0.0f32;
+    let mut prev_delta = true;
+    let mut depth = 1u32;
+    loop {
+        *rays += 1;
+        // Adds emitted radiance reached by the path, MIS-weighted against light
+        // sampling unless the previous bounce could not have sampled a light.
+        let emit = |radiance: Vec3, light_pdf: f32, indirect: &mut Vec3, out: &mut PixelSample| {
+            if depth == 1 {
+                out.emission += radiance;
+            } else {
+                let w = if prev_delta || !nee { 1.0 } else { mis(prev_pdf, light_pdf) };
+                *indirect += throughput * radiance * w;
+            }
+        };
+        let surface = match closest(scene, o, d) {
+            None => {
+                for (radiance, pdf) in lights.escaped(d) {
+                    if radiance != Vec3::ZERO {
+                        emit(radiance, pdf, &mut indirect, &mut out);
+                    }
+                }
+                break;
+            }
+            Some(Hit::Light(q, t)) => {
+                let cos = -d.dot(q.normal);
+                if cos > 0.0 {
+                    emit(q.radiance, lights.area_pdf(q.radiance, t * t, cos), &mut indirect, &mut out);
+                }
+                if depth == 1 {
+                    out.normal = q.normal;
+                    out.position = o + d * t;
+                }
+                break;
+            }
+            Some(Hit::Surface(s)) => s,
+        };
+        let material = surface.material;
+        let wo_world = -d;
+        if material.is_emissive() {
+            let cos = wo_world.dot(surface.ng);
+            if cos > 0.0 {
+                let dist2 = (surface.p - o).length_squared();
+                let pdf = lights.area_pdf(material.emission, dist2, cos);
+                emit(material.emission, pdf, &mut indirect, &mut out);
+            }
+        }
+        let albedo = albedo_of(material, surface.uv);
+        if depth == 1 {
+            out.albedo = albedo.max(Vec3::splat(MIN_ALBEDO));
+            out.normal = surface.ns;
+            out.position = surface.p;
+            out.object = surface.object;
+        }
+        if depth >= max_depth {
+            break;
+        }
+        let bsdf = Bsdf::new(material.kind, albedo, material.roughness, material.ior);
+        let (mut ng, mut ns) = (surface.ng, surface.ns);
+        if bsdf.two_sided() && ng.dot(wo_world) < 0.0 {
+            ng = -ng;
+            ns = -ns;
+        }
+        let mut frame = Frame::new(ns);
+        let mut wo = frame.to_local(wo_world);
+        if bsdf.two_sided() && wo.z <= 0.0 {
+            // The shading normal faces away from the viewer: fall back to geometry.
+            frame = Frame::new(ng);
+            wo = frame.to_local(wo_world);
+        }
+
+        // Next-event estimation.
+        let u_light = stream.next4();
+        if nee && !bsdf.is_delta() {
+            if let Some(ls) = lights.sample(surface.p, [u_light[0], u_light[1], u_light[2]]) {
+                let (f, bsdf_pdf) = bsdf.eval(wo, frame.to_local(ls.wi));
+                if f != Vec3::ZERO && ls.radiance != Vec3::ZERO {
+                    let origin = offset(surface.p, ng, ls.wi);
+                    let tmax = if ls.dist.is_finite() {
+                        (ls.dist * (1.0 - 1e-3)).max(0.0)
+                    } else {
+                        f32::INFINITY
+                    };
+                    *rays += 1;
+                    if !scene.tlas.occluded(origin, ls.wi, tmax) {
+                        let contribution = if ls.pdf == 0.0 {
+                            f * ls.radiance
+                        } else {
+                            f * ls.radiance * (mis(ls.pdf, bsdf_pdf) / ls.pdf)
+                        };
+                        indirect += throughput * contribution;
+                    }
+                }
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        let u = stream.next4();
+        let Some(sample) = bsdf.sample(wo, [u[0], u[1], u[2]]) else { break };
+        let wi = frame.to_world(sample.wi);
+        throughput *= sample.weight;
+        prev_pdf = sample.pdf;
+        prev_delta = sample.delta;
+        o = offset(surface.p, ng, wi);
+        d = wi;
+        depth += 1;
+        if depth > RR_START_DEPTH {
+            let q = throughput.max_element().min(0.95);
+            if u[3] >= q {
+                break;
+            }
+            throughput /= q;
+        }
+        if throughput == Vec3::ZERO {
+            break;
+        }
+    }
+    // Demodulate: radiance = (L - Le_direct) / albedo.
+    out.radiance = indirect / out.albedo;
+    out
+}
+
+/// Renders the given pixels (index = y*width + x, y = 0 is the top row),
+/// state.render.spp samples each, max depth state.render.max_depth;
+/// single-threaded; deterministic for (state.seed, frame, pixel, sample index).
+/// `out` is cleared and filled in pixel order.
+pub fn render_pixels(scene: &RenderScene, frame: u64, pixels: &[u32], out: &mut Vec<PixelSample>) {
+    render_pixels_counted(scene, frame, pixels, out, Strategy::NeeMis);
+}
+
+/// [`render_pixels`] with a choice of light-gathering strategy, also returning
+/// how much work it did (for benchmarks and validation).
+pub fn render_pixels_counted(
+    scene: &RenderScene,
+    frame: u64,
+    pixels: &[u32],
+    out: &mut Vec<PixelSample>,
+    strategy: Strategy,
+) -> RenderStats {
+    out.clear();
+    out.reserve(pixels.len());
+    let state = scene.state();
+    let width = state.resolution.width.max(1);
+    let spp = state.render.spp.max(1);
+    let inv = 1.0 / spp as f32;
+    let mut stats = RenderStats::default();
+    for &pixel in pixels {
+        let pos = Vec2::new((pixel % width) as f32, (pixel / width) as f32);
+        let mut acc = PixelSample::default();
+        for index in 0..spp {
+            let mut stream = SampleStream::new(state.seed, frame, pixel, index);
+            let s = trace_path(scene, &mut stream, pos, state.render.max_depth, strategy, &mut stats.rays);
+            acc.radiance += s.radiance;
+            acc.emission += s.emission;
+            if index == 0 {
+                acc.albedo = s.albedo;
+                acc.normal = s.normal;
+                acc.position = s.position;
+                acc.object = s.object;
+            }
+        }
+        acc.radiance *= inv;
+        acc.emission *= inv;
+        out.push(acc);
+    }
+    stats.samples = pixels.len() as u64 * spp as u64;
+    stats
+}
+
+/// G-buffer sample through the pixel centre (radiance zero).
+pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
+    let width = scene.state().resolution.width.max(1);
+    let pos = Vec2::new((pixel % width) as f32 + 0.5, (pixel / width) as f32 + 0.5);
+    let (o, d) = scene.camera.ray(pos, Vec2::splat(0.5));
+    let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
+    match closest(scene, o, d) {
+        None => {
+            out.emission = scene.lights.escaped(d).iter().map(|e| e.0).sum();
+        }
+        Some(Hit::Light(q, t)) => {
+            if -d.dot(q.normal) > 0.0 {
+                out.emission = q.radiance;
+            }
+            out.normal = q.normal;
+            out.position = o + d * t;
+        }
+        Some(Hit::Surface(s)) => {
+            if s.material.is_emissive() && -d.dot(s.ng) > 0.0 {
+                out.emission = s.material.emission;
+            }
+            out.albedo = albedo_of(s.material, s.uv).max(Vec3::splat(MIN_ALBEDO));
+            out.normal = s.ns;
+            out.position = s.p;
+            out.object = s.object;
+        }
+    }
+    out
+}
+
+/// Picking for the window: the object hit by the ray through (x, y) in pixels.
+pub fn pick(scene: &RenderScene, x: f32, y: f32) -> Option<u32> {
+    let (o, d) = scene.camera.ray(Vec2::new(x, y), Vec2::splat(0.5));
+    match closest(scene, o, d)? {
+        Hit::Surface(s) => Some(s.object),
+        Hit::Light(..) => None,
+    }
+}

@@ -1,0 +1,345 @@
+//! The path tracer: the rendering kernel every worker runs.
+//!
+//! A [`RenderScene`] turns a [`SceneState`] plus loaded [`Assets`] into render
+//! structures: one bottom-level BVH per mesh (built once, cached by geometry), a
+//! top-level BVH over the object instances (rebuilt per state), the material and
+//! light tables and the camera. [`render_pixels`] path-traces a list of pixels on
+//! the calling thread, deterministically for (scene seed, frame, pixel, sample),
+//! and returns what reconstruction needs per pixel (DESIGN.md): demodulated
+//! radiance, directly seen emission and the primary hit's G-buffer values.
+//!
+//! Modules: [`accel`] (BVHs), [`sampler`] (scrambled Sobol), [`camera`],
+//! [`bsdf`] and [`microfacet`] (materials), [`lights`] and [`envmap`] (emitters),
+//! [`integrator`] (the path loop).
+
+pub mod accel;
+pub mod bsdf;
+pub mod camera;
+pub mod envmap;
+pub mod integrator;
+pub mod lights;
+pub mod microfacet;
+pub mod sampler;
+pub mod testscenes;
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use glam::{Affine3A, Vec3};
+use gridlight_actors::state::{Geometry, MaterialKind, SceneState};
+
+use crate::assets::{Assets, Mesh, Texture};
+use crate::shapes;
+use accel::{Blas, Instance, MeshError, Tlas};
+use camera::{CameraError, CameraRays};
+use envmap::Environment;
+use lights::{AreaLight, Lights};
+
+pub use integrator::{pick, primary_hit, render_pixels, render_pixels_counted, RenderStats, Strategy};
+
+/// Why a scene state cannot be rendered with the given assets.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("object `{object}` uses geometry {geometry:?}, which is not in the loaded assets")]
+    MissingMesh { object: String, geometry: Geometry },
+    #[error("object `{object}`: {source}")]
+    BadMesh { object: String, source: MeshError },
+    #[error("material `{material}` uses texture `{path}`, which is not in the loaded assets")]
+    MissingTexture { material: String, path: String },
+    #[error("environment map `{path}` is not in the loaded assets")]
+    MissingEnvironment { path: String },
+    #[error("object `{object}` refers to material {material}, but the state has {count} materials")]
+    MaterialOutOfRange { object: String, material: u32, count: usize },
+    #[error("object `{object}` binds {bound} materials, but its geometry has {slots} material slots")]
+    SlotCount { object: String, bound: usize, slots: u32 },
+    #[error("object `{object}` has a non-finite or singular transform")]
+    BadTransform { object: String },
+    #[error("material `{material}` has a non-finite or negative parameter")]
+    BadMaterial { material: String },
+    #[error("light {index} has a non-finite parameter")]
+    BadLight { index: usize },
+    #[error("texture `{path}` has {texels} texels for {width}x{height}")]
+    BadTexture { path: String, texels: usize, width: u32, height: u32 },
+    #[error("camera: {0}")]
+    Camera(#[from] CameraError),
+}
+
+/// What the kernel returns for one pixel (DESIGN.md: the final colour is
+/// `albedo * radiance + emission`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelSample {
+    /// Demodulated: (L - emission) / albedo, averaged over the samples.
+    pub radiance: Vec3,
+    /// Directly seen emission (the environment for escaping camera rays).
+    pub emission: Vec3,
+    /// Primary hit albedo (textured, clamped away from 0), 1 for escaping rays.
+    pub albedo: Vec3,
+    /// Primary hit shading normal (world), 0 for escaping rays.
+    pub normal: Vec3,
+    /// Primary hit world position.
+    pub position: Vec3,
+    /// Index into `state.objects`, `u32::MAX` for escaping rays and `Light::Quad`s.
+    pub object: u32,
+}
+
+/// A material with its texture resolved.
+#[derive(Clone, Debug)]
+pub struct MaterialData {
+    pub kind: MaterialKind,
+    pub base_color: Vec3,
+    pub texture: Option<Arc<Texture>>,
+    pub roughness: f32,
+    pub ior: f32,
+    pub emission: Vec3,
+}
+
+impl MaterialData {
+    #[inline]
+    pub fn is_emissive(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// Everything the kernel needs to render one scene state. `Send + Sync`: one
+/// scene is shared by all render threads.
+pub struct RenderScene {
+    assets: Arc<Assets>,
+    state: SceneState,
+    blas_cache: HashMap<Geometry, Arc<Blas>>,
+    pub(crate) tlas: Tlas,
+    pub(crate) materials: Vec<MaterialData>,
+    /// Per instance (from `Instance::material_base`): material of each slot.
+    pub(crate) slot_materials: Vec<u32>,
+    pub(crate) lights: Lights,
+    pub(crate) camera: CameraRays,
+    triangles: usize,
+}
+
+impl RenderScene {
+    /// Builds one bottom-level BVH per mesh (cached by Geometry, built once) and the
+    /// top-level BVH over the state's object instances.
+    pub fn new(assets: Arc<Assets>, state: &SceneState) -> Result<Self, RenderError> {
+        let camera = CameraRays::new(&state.camera, state.resolution)?;
+        let mut scene = Self {
+            assets,
+            state: state.clone(),
+            blas_cache: HashMap::new(),
+            tlas: Tlas::build(Vec::new()),
+            materials: Vec::new(),
+            slot_materials: Vec::new(),
+            lights: Lights::default(),
+            camera,
+            triangles: 0,
+        };
+        scene.set_state(state)?;
+        Ok(scene)
+    }
+
+    /// Applies a new scene state: rebuilds only the top-level BVH (and material/light
+    /// tables); bottom-level BVHs are reused. New geometry must be present in the
+    /// Assets (built-in shapes are generated when absent). On error the previous
+    /// state stays in force.
+    pub fn set_state(&mut self, state: &SceneState) -> Result<(), RenderError> {
+        let camera = CameraRays::new(&state.camera, state.resolution)?;
+        let materials = self.resolve_materials(state)?;
+        let mut instances = Vec::new();
+        let mut slot_materials = Vec::new();
+        let mut areas = Vec::new();
+        let mut triangles = 0;
+        for (index, object) in state.objects.iter().enumerate() {
+            if !object.visible {
+                continue;
+            }
+            let blas = self.blas_for(&object.name, &object.geometry)?;
+            let slots = blas.mesh.slot_count.max(1);
+            if object.materials.len() < slots as usize {
+                return Err(RenderError::SlotCount {
+                    object: object.name.clone(),
+                    bound: object.materials.len(),
+                    slots,
+                });
+            }
+            if let Some(&material) = object.materials.iter().find(|&&m| m as usize >= materials.len()) {
+                return Err(RenderError::MaterialOutOfRange {
+                    object: object.name.clone(),
+                    material,
+                    count: materials.len(),
+                });
+            }
+            let matrix = Affine3A::from_mat4(object.transform.matrix());
+            if !matrix.is_finite() || matrix.matrix3.determinant().abs() < 1e-20 {
+                return Err(RenderError::BadTransform { object: object.name.clone() });
+            }
+            let base = slot_materials.len() as u32;
+            slot_materials.extend_from_slice(&object.materials[..slots as usize]);
+            let instance = Instance::new(blas.clone(), matrix, index as u32, base);
+            collect_emitters(&instance, &object.materials, &materials, &mut areas);
+            triangles += blas.triangle_count();
+            instances.push(instance);
+        }
+        let environment = self.resolve_environment(state)?;
+        for (index, light) in state.lights.iter().enumerate() {
+            if !light_is_finite(light) {
+                return Err(RenderError::BadLight { index });
+            }
+        }
+        self.lights = Lights::new(areas, &state.lights, environment);
+        self.tlas = Tlas::build(instances);
+        self.materials = materials;
+        self.slot_materials = slot_materials;
+        self.camera = camera;
+        self.triangles = triangles;
+        self.state = state.clone();
+        Ok(())
+    }
+
+    pub fn state(&self) -> &SceneState {
+        &self.state
+    }
+
+    /// Triangles of all visible instances (instanced meshes counted per instance).
+    pub fn triangle_count(&self) -> usize {
+        self.triangles
+    }
+
+    /// The cached BLAS of a geometry, building it on first use.
+    fn blas_for(&mut self, object: &str, geometry: &Geometry) -> Result<Arc<Blas>, RenderError> {
+        if let Some(blas) = self.blas_cache.get(geometry) {
+            return Ok(blas.clone());
+        }
+        let mesh: Arc<Mesh> = match self.assets.meshes.get(geometry) {
+            Some(mesh) => mesh.clone(),
+            None => shapes::mesh(geometry).map(Arc::new).ok_or_else(|| RenderError::MissingMesh {
+                object: object.to_string(),
+                geometry: geometry.clone(),
+            })?,
+        };
+        let blas = Arc::new(
+            Blas::build(mesh)
+                .map_err(|source| RenderError::BadMesh { object: object.to_string(), source })?,
+        );
+        self.blas_cache.insert(geometry.clone(), blas.clone());
+        Ok(blas)
+    }
+
+    fn resolve_materials(&self, state: &SceneState) -> Result<Vec<MaterialData>, RenderError> {
+        state
+            .materials
+            .iter()
+            .map(|m| {
+                let ok = m.base_color.is_finite()
+                    && m.base_color.min_element() >= 0.0
+                    && m.emission.is_finite()
+                    && m.emission.min_element() >= 0.0
+                    && m.roughness.is_finite()
+                    && m.ior.is_finite();
+                if !ok {
+                    return Err(RenderError::BadMaterial { material: m.name.clone() });
+                }
+                let texture = match &m.base_color_texture {
+                    None => None,
+                    Some(path) => {
+                        let tex = self.assets.textures.get(path).ok_or_else(|| {
+                            RenderError::MissingTexture { material: m.name.clone(), path: path.clone() }
+                        })?;
+                        check_texture(path, tex)?;
+                        Some(tex.clone())
+                    }
+                };
+                Ok(MaterialData {
+                    kind: m.kind,
+                    base_color: m.base_color,
+                    texture,
+                    roughness: m.roughness,
+                    ior: m.ior,
+                    emission: m.emission,
+                })
+            })
+            .collect()
+    }
+
+    fn resolve_environment(&self, state: &SceneState) -> Result<Option<Environment>, RenderError> {
+        let Some(env) = &state.environment else { return Ok(None) };
+        let scale = env.color * env.intensity;
+        if !scale.is_finite() || !env.rotation_deg.is_finite() {
+            return Err(RenderError::BadLight { index: state.lights.len() });
+        }
+        match &env.map {
+            None => Ok((scale.max_element() > 0.0).then(|| Environment::constant(scale))),
+            Some(path) => {
+                let tex = self
+                    .assets
+                    .environments
+                    .get(path)
+                    .ok_or_else(|| RenderError::MissingEnvironment { path: path.clone() })?;
+                check_texture(path, tex)?;
+                Ok(Some(Environment::map(tex.clone(), scale, env.rotation_deg)))
+            }
+        }
+    }
+}
+
+fn check_texture(path: &str, tex: &Texture) -> Result<(), RenderError> {
+    if tex.width == 0 || tex.height == 0 || tex.texels.len() != tex.width as usize * tex.height as usize
+    {
+        return Err(RenderError::BadTexture {
+            path: path.to_string(),
+            texels: tex.texels.len(),
+            width: tex.width,
+            height: tex.height,
+        });
+    }
+    Ok(())
+}
+
+fn light_is_finite(light: &gridlight_actors::state::Light) -> bool {
+    use gridlight_actors::state::Light;
+    match *light {
+        Light::Point { position, intensity } => position.is_finite() && intensity.is_finite(),
+        Light::Spot { position, direction, intensity, inner_deg, outer_deg } => {
+            position.is_finite()
+                && direction.is_finite()
+                && intensity.is_finite()
+                && inner_deg.is_finite()
+                && outer_deg.is_finite()
+        }
+        Light::Sun { direction, radiance, angular_radius_deg } => {
+            direction.is_finite() && radiance.is_finite() && angular_radius_deg.is_finite()
+        }
+        Light::Quad { corner, edge_u, edge_v, radiance } => {
+            corner.is_finite() && edge_u.is_finite() && edge_v.is_finite() && radiance.is_finite()
+        }
+    }
+}
+
+/// Appends the world-space emissive triangles of an instance.
+fn collect_emitters(
+    instance: &Instance,
+    bindings: &[u32],
+    materials: &[MaterialData],
+    out: &mut Vec<AreaLight>,
+) {
+    let mesh = &instance.blas.mesh;
+    if !bindings.iter().any(|&m| materials[m as usize].is_emissive()) {
+        return;
+    }
+    let m = &instance.object_to_world;
+    for (i, tri) in mesh.indices.iter().enumerate() {
+        let slot = mesh.slots.get(i).copied().unwrap_or(0) as usize;
+        let material = &materials[bindings[slot] as usize];
+        if !material.is_emissive() {
+            continue;
+        }
+        let [a, b, c] = tri.map(|v| m.transform_point3(mesh.positions[v as usize]));
+        let (e1, e2) = (b - a, c - a);
+        let object_normal = {
+            let [oa, ob, oc] = tri.map(|v| mesh.positions[v as usize]);
+            (ob - oa).cross(oc - oa)
+        };
+        let normal = instance.normal_to_world.mul_vec3(object_normal).normalize_or_zero();
+        if normal == Vec3::ZERO {
+            continue;
+        }
+        out.push(AreaLight { v0: a, e1, e2, normal, radiance: material.emission, parallelogram: false });
+    }
+}
