@@ -13,19 +13,21 @@
 //! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
 //! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
 //! - [`render`]: the path tracer (BVHs, materials, lights, the per-pixel kernel).
+//! - [`bench`]: benchmarks behind `gridlight bench` (kernel throughput).
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
 //! `gridlight-actors` crate, which this crate depends on and never the reverse.
 
 pub mod assets;
+pub mod bench;
 pub mod children;
 pub mod cli;
 pub mod eval;
 pub mod gpu;
 pub mod image_io;
 pub mod reconstruct;
-pub mod scene;
 pub mod render;
+pub mod scene;
 pub mod shapes;
 pub mod worker;
 

@@ -6,12 +6,12 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use gridlight::assets::Assets;
-use gridlight::shapes;
 use gridlight::render::testscenes::{cornell_box, furnace, material};
 use gridlight::render::{
     pick, primary_hit, render_pixels, render_pixels_counted, PixelSample, RenderError, RenderScene,
     Strategy,
 };
+use gridlight::shapes;
 use gridlight_actors::state::{Geometry, MaterialKind, SceneState, Transform};
 
 fn all_pixels(state: &SceneState) -> Vec<u32> {
@@ -51,7 +51,10 @@ fn white_furnace_diffuse_sphere_matches_environment() {
         assert!(n > 20, "the sphere covers too few pixels ({n})");
         // A convex object: one bounce, then every ray escapes: L = ρ · L_env.
         let expected = albedo * 0.8;
-        assert!((mean - Vec3::splat(expected)).abs().max_element() < 0.01 * expected + 1e-3, "ρ {albedo}: {mean}");
+        assert!(
+            (mean - Vec3::splat(expected)).abs().max_element() < 0.01 * expected + 1e-3,
+            "ρ {albedo}: {mean}"
+        );
     }
 }
 
@@ -113,13 +116,14 @@ fn closed_furnace_has_the_known_answer_with_nee_and_with_bsdf_sampling() {
 
 #[test]
 fn nee_and_bsdf_sampling_agree_on_the_cornell_box() {
+    // Pure BSDF sampling finds the small light rarely: it needs many paths.
     let (assets, mut state) = cornell_box(24, 18);
-    state.render.spp = 64;
+    state.render.spp = 256;
     let scene = RenderScene::new(assets, &state).unwrap();
     let nee = mean_colour(&scene, 1, Strategy::NeeMis);
     let bsdf = mean_colour(&scene, 1, Strategy::BsdfOnly);
     let rel = ((nee - bsdf) / nee).abs();
-    assert!(rel.max_element() < 0.05, "NEE {nee} vs BSDF {bsdf}");
+    assert!(rel.max_element() < 0.03, "NEE {nee} vs BSDF {bsdf}");
     assert!(nee.min_element() > 0.02, "the box is too dark: {nee}");
 }
 
@@ -145,11 +149,11 @@ fn rendering_is_deterministic_and_per_pixel() {
 
 #[test]
 fn g_buffer_values_follow_the_demodulation_convention() {
-    let (assets, state) = cornell_box(32, 24);
+    let (assets, state) = cornell_box(24, 24);
     let scene = RenderScene::new(assets, &state).unwrap();
     let width = state.resolution.width;
     // The centre pixel sees the back wall (white) or a box (white).
-    let centre = 12 * width + 16;
+    let centre = 12 * width + 12;
     let g = primary_hit(&scene, centre);
     assert_eq!(g.radiance, Vec3::ZERO);
     assert_eq!(g.albedo, state.materials[0].base_color);
@@ -228,11 +232,17 @@ fn bad_states_are_rejected_with_the_name_of_what_is_missing() {
 
     let (_, mut state) = cornell_box(8, 6);
     state.objects[1].materials = vec![99];
-    assert!(matches!(RenderScene::new(assets.clone(), &state), Err(RenderError::MaterialOutOfRange { .. })));
+    assert!(matches!(
+        RenderScene::new(assets.clone(), &state),
+        Err(RenderError::MaterialOutOfRange { .. })
+    ));
 
     let (_, mut state) = cornell_box(8, 6);
     state.objects[2].transform.translation.y = f32::NAN;
-    assert!(matches!(RenderScene::new(assets.clone(), &state), Err(RenderError::BadTransform { .. })));
+    assert!(matches!(
+        RenderScene::new(assets.clone(), &state),
+        Err(RenderError::BadTransform { .. })
+    ));
 
     // A failed update keeps the previous state.
     let (_, good) = cornell_box(8, 6);

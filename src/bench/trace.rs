@@ -105,7 +105,8 @@ mod tests {
         assert_eq!(r.triangles, 36);
         assert!(r.samples_per_second_per_core > 0.0);
         let json = serde_json::to_value(&r).unwrap();
-        for key in ["scene", "samples_per_second_per_core", "rays_per_second_per_core", "triangles"] {
+        for key in ["scene", "samples_per_second_per_core", "rays_per_second_per_core", "triangles"]
+        {
             assert!(json.get(key).is_some(), "missing {key}");
         }
     }

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 
+pub mod bench;
 pub mod eval;
 pub mod render;
 
@@ -39,6 +40,8 @@ pub enum Command {
     /// Evaluations that reproduce the paper's findings; JSON lines with `--json`.
     #[command(subcommand)]
     Eval(eval::EvalCommand),
+    /// Measure performance (JSON lines with `--json`).
+    Bench(bench::Args),
 }
 
 /// Runs the parsed command line.
@@ -46,6 +49,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(args) => render::run(args, &cli.global),
         Command::Eval(cmd) => eval::run(cmd, &cli.global),
+        Command::Bench(args) => bench::run(args, &cli.global),
     }
 }
 

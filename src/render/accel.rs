@@ -37,7 +37,13 @@ impl TriEdges {
     /// Distance along the ray and barycentrics (u at vertex 1, v at vertex 2) of
     /// the intersection within (tmin, tmax), or `None`. Two-sided.
     #[inline(always)]
-    pub fn intersect(&self, origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
+    pub fn intersect(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<(f32, f32, f32)> {
         let p = dir.cross(self.e2);
         let det = self.e1.dot(p);
         if det.abs() < 1e-12 {
@@ -62,7 +68,12 @@ impl TriEdges {
 impl TriEdges {
     /// Intersection with the parallelogram `v0 + s e1 + t e2`, s, t in [0, 1].
     #[inline]
-    pub fn intersect_parallelogram(&self, origin: Vec3A, dir: Vec3A, tmax: f32) -> Option<(f32, f32, f32)> {
+    pub fn intersect_parallelogram(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+    ) -> Option<(f32, f32, f32)> {
         let p = dir.cross(self.e2);
         let det = self.e1.dot(p);
         if det.abs() < 1e-12 {
@@ -153,8 +164,11 @@ impl Blas {
         let (bvh, original) = if tris.is_empty() {
             (CwBvh::default(), Vec::new())
         } else {
-            let bvh =
-                build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
+            let bvh = build_cwbvh_from_tris(
+                &tris,
+                BvhBuildParams::medium_build(),
+                &mut Duration::default(),
+            );
             let original = bvh.primitive_indices.clone();
             (bvh, original)
         };
@@ -200,7 +214,12 @@ pub struct Instance {
 }
 
 impl Instance {
-    pub fn new(blas: Arc<Blas>, object_to_world: Affine3A, object: u32, material_base: u32) -> Self {
+    pub fn new(
+        blas: Arc<Blas>,
+        object_to_world: Affine3A,
+        object: u32,
+        material_base: u32,
+    ) -> Self {
         let world_to_object = object_to_world.inverse();
         let normal_to_world = world_to_object.matrix3.transpose();
         Self { blas, object_to_world, world_to_object, normal_to_world, object, material_base }
@@ -249,7 +268,8 @@ impl Tlas {
         }
         let aabbs: Vec<Aabb> = instances.iter().map(Instance::world_bounds).collect();
         let bvh = build_cwbvh(&aabbs, BvhBuildParams::medium_build(), &mut Duration::default());
-        let instances = bvh.primitive_indices.iter().map(|&i| instances[i as usize].clone()).collect();
+        let instances =
+            bvh.primitive_indices.iter().map(|&i| instances[i as usize].clone()).collect();
         Self { bvh, instances }
     }
 
@@ -319,7 +339,9 @@ impl Tlas {
                     inner,
                     inner_node.intersect_ray(&ray, inner.oct_inv4),
                     {
-                        if blas.tris[inner.primitive_id as usize].intersect(o, d, 0.0, tmax).is_some()
+                        if blas.tris[inner.primitive_id as usize]
+                            .intersect(o, d, 0.0, tmax)
+                            .is_some()
                         {
                             blocked = true;
                             break 'outer;
@@ -367,7 +389,11 @@ mod tests {
         let mut instances = Vec::new();
         for object in 0..12u32 {
             let blas = if object % 3 == 0 { cube.clone() } else { sphere.clone() };
-            let t = Vec3::new(lcg(&mut rng) * 6.0 - 3.0, lcg(&mut rng) * 6.0 - 3.0, lcg(&mut rng) * 6.0 - 3.0);
+            let t = Vec3::new(
+                lcg(&mut rng) * 6.0 - 3.0,
+                lcg(&mut rng) * 6.0 - 3.0,
+                lcg(&mut rng) * 6.0 - 3.0,
+            );
             let r = Quat::from_euler(glam::EulerRot::XYZ, lcg(&mut rng) * 3.0, lcg(&mut rng), 0.5);
             let s = Vec3::new(0.3 + lcg(&mut rng), 0.3 + lcg(&mut rng), 0.3 + lcg(&mut rng));
             let m = Affine3A::from_scale_rotation_translation(s, r, t);
@@ -389,8 +415,8 @@ mod tests {
                 (Some(e), Some(g)) => {
                     hits += 1;
                     assert!((e.0 - g.0).abs() < 1e-4 * e.0.max(1.0), "t {} vs {}", e.0, g.0);
-                    assert_eq!(tlas.occluded(o, d, e.0 * 1.001), true);
-                    assert_eq!(tlas.occluded(o, d, e.0 * 0.999), false);
+                    assert!(tlas.occluded(o, d, e.0 * 1.001));
+                    assert!(!tlas.occluded(o, d, e.0 * 0.999));
                 }
                 other => panic!("brute force and BVH disagree: {other:?}"),
             }
@@ -415,7 +441,10 @@ mod tests {
     fn bad_meshes_are_rejected() {
         let mut mesh = shapes::quad();
         mesh.indices[1][2] = 99;
-        assert!(matches!(validate_mesh(&mesh), Err(MeshError::VertexOutOfRange { vertex: 99, .. })));
+        assert!(matches!(
+            validate_mesh(&mesh),
+            Err(MeshError::VertexOutOfRange { vertex: 99, .. })
+        ));
         let mut mesh = shapes::quad();
         mesh.slots[0] = 3;
         assert!(matches!(validate_mesh(&mesh), Err(MeshError::SlotOutOfRange { slot: 3, .. })));

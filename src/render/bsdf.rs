@@ -301,7 +301,11 @@ mod tests {
                     if let Some(s) = bsdf.sample(wo, u) {
                         // Entering glass compresses radiance (≤ 1); the weight may
                         // not exceed one by more than rounding.
-                        assert!(s.weight.max_element() <= 1.0 + 1e-3, "{name}: weight {} at {wo}", s.weight);
+                        assert!(
+                            s.weight.max_element() <= 1.0 + 1e-3,
+                            "{name}: weight {} at {wo}",
+                            s.weight
+                        );
                         assert!(s.weight.min_element() >= 0.0);
                         albedo += s.weight;
                     }
@@ -319,7 +323,8 @@ mod tests {
         let wo = Vec3::new(0.6, 0.0, 0.8);
         let n = 4096;
         let diffuse = Bsdf::new(MaterialKind::Diffuse, Vec3::ONE, 1.0, 1.5);
-        let sum: f32 = uniforms(n, 3).filter_map(|u| diffuse.sample(wo, u)).map(|s| s.weight.x).sum();
+        let sum: f32 =
+            uniforms(n, 3).filter_map(|u| diffuse.sample(wo, u)).map(|s| s.weight.x).sum();
         assert!((sum / n as f32 - 1.0).abs() < 1e-4);
         let glass = Bsdf::new(MaterialKind::Dielectric, Vec3::ONE, 0.0, 1.5);
         let fr = fresnel_dielectric(0.8, 1.5);
@@ -366,8 +371,11 @@ mod tests {
                     let mut acc = 0.0;
                     for i in 0..sub {
                         for j in 0..sub {
-                            let z = -1.0 + (t as f32 + (i as f32 + 0.5) / sub as f32) * 2.0 / (2 * NT) as f32;
-                            let phi = (p as f32 + (j as f32 + 0.5) / sub as f32) * 2.0 * PI / NP as f32;
+                            let z = -1.0
+                                + (t as f32 + (i as f32 + 0.5) / sub as f32) * 2.0
+                                    / (2 * NT) as f32;
+                            let phi =
+                                (p as f32 + (j as f32 + 0.5) / sub as f32) * 2.0 * PI / NP as f32;
                             let r = (1.0 - z * z).max(0.0).sqrt();
                             let w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
                             acc += bsdf.eval(wo, w).1 as f64;
@@ -395,7 +403,10 @@ mod tests {
                 // Generous bound (midpoint integration is approximate on peaked lobes):
                 // a wrong pdf gives chi² many times the degrees of freedom.
                 eprintln!("{name} at {wo}: chi² {chi2:.0} with {dof} bins");
-                assert!(chi2 < 2.0 * dof as f64 + 60.0, "{name} at {wo}: chi² {chi2:.0} with {dof} bins");
+                assert!(
+                    chi2 < 2.0 * dof as f64 + 60.0,
+                    "{name} at {wo}: chi² {chi2:.0} with {dof} bins"
+                );
             }
         }
     }

@@ -38,7 +38,8 @@ impl CameraRays {
         if resolution.width == 0 || resolution.height == 0 {
             return Err(CameraError::Resolution(resolution.width, resolution.height));
         }
-        let finite = camera.position.is_finite() && camera.look_at.is_finite() && camera.up.is_finite();
+        let finite =
+            camera.position.is_finite() && camera.look_at.is_finite() && camera.up.is_finite();
         let view = camera.look_at - camera.position;
         if !finite || view.length_squared() == 0.0 {
             return Err(CameraError::Degenerate);

@@ -184,7 +184,12 @@ fn trace_path(
             Some(Hit::Light(q, t)) => {
                 let cos = -d.dot(q.normal);
                 if cos > 0.0 {
-                    emit(q.radiance, lights.area_pdf(q.radiance, t * t, cos), &mut indirect, &mut out);
+                    emit(
+                        q.radiance,
+                        lights.area_pdf(q.radiance, t * t, cos),
+                        &mut indirect,
+                        &mut out,
+                    );
                 }
                 if depth == 1 {
                     out.normal = q.normal;
@@ -308,7 +313,14 @@ pub fn render_pixels_counted(
         let mut acc = PixelSample::default();
         for index in 0..spp {
             let mut stream = SampleStream::new(state.seed, frame, pixel, index);
-            let s = trace_path(scene, &mut stream, pos, state.render.max_depth, strategy, &mut stats.rays);
+            let s = trace_path(
+                scene,
+                &mut stream,
+                pos,
+                state.render.max_depth,
+                strategy,
+                &mut stats.rays,
+            );
             acc.radiance += s.radiance;
             acc.emission += s.emission;
             if index == 0 {

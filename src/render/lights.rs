@@ -89,7 +89,11 @@ pub struct Lights {
 impl Lights {
     /// Builds the table from area emitters (triangles of emissive objects), the
     /// state's explicit lights and the environment.
-    pub fn new(mut areas: Vec<AreaLight>, lights: &[Light], environment: Option<Environment>) -> Self {
+    pub fn new(
+        mut areas: Vec<AreaLight>,
+        lights: &[Light],
+        environment: Option<Environment>,
+    ) -> Self {
         let mut points = Vec::new();
         let mut sun = None;
         for light in lights {
@@ -101,7 +105,11 @@ impl Lights {
                     let outer = outer_deg.to_radians().cos();
                     let inner = inner_deg.min(outer_deg).to_radians().cos();
                     let axis = direction.normalize_or(Vec3::NEG_Y);
-                    points.push(PointLight { position, intensity, spot: Some((axis, inner, outer)) })
+                    points.push(PointLight {
+                        position,
+                        intensity,
+                        spot: Some((axis, inner, outer)),
+                    })
                 }
                 Light::Sun { direction, radiance, angular_radius_deg } => {
                     let dir = direction.normalize_or(Vec3::Y);
@@ -180,7 +188,12 @@ impl Lights {
         debug_assert_eq!(k, 0);
         let env = self.environment.as_ref()?;
         let (wi, radiance, pdf) = env.sample(u2);
-        (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, radiance, pdf: pdf * self.strategy_pmf })
+        (pdf > 0.0).then_some(LightSample {
+            wi,
+            dist: f32::INFINITY,
+            radiance,
+            pdf: pdf * self.strategy_pmf,
+        })
     }
 
     fn sample_area(&self, p: Vec3, u: f32, u2: Vec2) -> Option<LightSample> {

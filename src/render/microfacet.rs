@@ -100,11 +100,8 @@ impl Ggx {
         // Stretch to the hemisphere configuration.
         let vh = Vec3::new(self.alpha * w.x, self.alpha * w.y, w.z).normalize();
         let len2 = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if len2 > 0.0 {
-            Vec3::new(-vh.y, vh.x, 0.0) * (1.0 / len2.sqrt())
-        } else {
-            Vec3::X
-        };
+        let t1 =
+            if len2 > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) * (1.0 / len2.sqrt()) } else { Vec3::X };
         let t2 = vh.cross(t1);
         let r = u.x.sqrt();
         let phi = 2.0 * PI * u.y;

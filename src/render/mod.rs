@@ -35,7 +35,9 @@ use camera::{CameraError, CameraRays};
 use envmap::Environment;
 use lights::{AreaLight, Lights};
 
-pub use integrator::{pick, primary_hit, render_pixels, render_pixels_counted, RenderStats, Strategy};
+pub use integrator::{
+    pick, primary_hit, render_pixels, render_pixels_counted, RenderStats, Strategy,
+};
 
 /// Why a scene state cannot be rendered with the given assets.
 #[derive(Debug, thiserror::Error)]
@@ -48,9 +50,13 @@ pub enum RenderError {
     MissingTexture { material: String, path: String },
     #[error("environment map `{path}` is not in the loaded assets")]
     MissingEnvironment { path: String },
-    #[error("object `{object}` refers to material {material}, but the state has {count} materials")]
+    #[error(
+        "object `{object}` refers to material {material}, but the state has {count} materials"
+    )]
     MaterialOutOfRange { object: String, material: u32, count: usize },
-    #[error("object `{object}` binds {bound} materials, but its geometry has {slots} material slots")]
+    #[error(
+        "object `{object}` binds {bound} materials, but its geometry has {slots} material slots"
+    )]
     SlotCount { object: String, bound: usize, slots: u32 },
     #[error("object `{object}` has a non-finite or singular transform")]
     BadTransform { object: String },
@@ -159,7 +165,9 @@ impl RenderScene {
                     slots,
                 });
             }
-            if let Some(&material) = object.materials.iter().find(|&&m| m as usize >= materials.len()) {
+            if let Some(&material) =
+                object.materials.iter().find(|&&m| m as usize >= materials.len())
+            {
                 return Err(RenderError::MaterialOutOfRange {
                     object: object.name.clone(),
                     material,
@@ -209,9 +217,8 @@ impl RenderScene {
         }
         let mesh: Arc<Mesh> = match self.assets.meshes.get(geometry) {
             Some(mesh) => mesh.clone(),
-            None => shapes::mesh(geometry).map(Arc::new).ok_or_else(|| RenderError::MissingMesh {
-                object: object.to_string(),
-                geometry: geometry.clone(),
+            None => shapes::mesh(geometry).map(Arc::new).ok_or_else(|| {
+                RenderError::MissingMesh { object: object.to_string(), geometry: geometry.clone() }
             })?,
         };
         let blas = Arc::new(
@@ -240,7 +247,10 @@ impl RenderScene {
                     None => None,
                     Some(path) => {
                         let tex = self.assets.textures.get(path).ok_or_else(|| {
-                            RenderError::MissingTexture { material: m.name.clone(), path: path.clone() }
+                            RenderError::MissingTexture {
+                                material: m.name.clone(),
+                                path: path.clone(),
+                            }
                         })?;
                         check_texture(path, tex)?;
                         Some(tex.clone())
@@ -280,7 +290,9 @@ impl RenderScene {
 }
 
 fn check_texture(path: &str, tex: &Texture) -> Result<(), RenderError> {
-    if tex.width == 0 || tex.height == 0 || tex.texels.len() != tex.width as usize * tex.height as usize
+    if tex.width == 0
+        || tex.height == 0
+        || tex.texels.len() != tex.width as usize * tex.height as usize
     {
         return Err(RenderError::BadTexture {
             path: path.to_string(),
@@ -340,6 +352,13 @@ fn collect_emitters(
         if normal == Vec3::ZERO {
             continue;
         }
-        out.push(AreaLight { v0: a, e1, e2, normal, radiance: material.emission, parallelogram: false });
+        out.push(AreaLight {
+            v0: a,
+            e1,
+            e2,
+            normal,
+            radiance: material.emission,
+            parallelogram: false,
+        });
     }
 }

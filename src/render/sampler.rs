@@ -14,7 +14,8 @@ const BITS: usize = 32;
 
 /// Direction numbers of Sobol dimensions 1..=3 (dimension 0 is bit reversal),
 /// from the primitive polynomials of Joe & Kuo: (degree, coefficients, initial m).
-const POLYNOMIALS: [(usize, u32, [u32; 3]); 3] = [(1, 0, [1, 0, 0]), (2, 1, [1, 3, 0]), (3, 1, [1, 3, 1])];
+const POLYNOMIALS: [(usize, u32, [u32; 3]); 3] =
+    [(1, 0, [1, 0, 0]), (2, 1, [1, 3, 0]), (3, 1, [1, 3, 1])];
 
 /// The 32 direction vectors of one Sobol dimension (Bratley & Fox recurrence).
 const fn directions(degree: usize, coeffs: u32, initial: [u32; 3]) -> [u32; BITS] {
@@ -145,14 +146,16 @@ impl SampleStream {
     /// The stream of sample `index` of `pixel` in `frame` under the scene `seed`.
     #[inline]
     pub fn new(seed: u64, frame: u64, pixel: u32, index: u32) -> Self {
-        let h = mix64(seed ^ mix64(frame.wrapping_add(0x9e37_79b9_7f4a_7c15) ^ mix64(pixel as u64)));
+        let h =
+            mix64(seed ^ mix64(frame.wrapping_add(0x9e37_79b9_7f4a_7c15) ^ mix64(pixel as u64)));
         Self { pixel_seed: (h ^ (h >> 32)) as u32, index, draw: 0 }
     }
 
     /// The next 4-D point of this sample, every coordinate in [0, 1).
     #[inline]
     pub fn next4(&mut self) -> [f32; 4] {
-        let seed = mix32(self.pixel_seed ^ mix32(self.draw.wrapping_mul(0x9e37_79b9) ^ 0x68e3_1da4));
+        let seed =
+            mix32(self.pixel_seed ^ mix32(self.draw.wrapping_mul(0x9e37_79b9) ^ 0x68e3_1da4));
         self.draw += 1;
         // Shuffle the point order (an Owen scramble of the index keeps the
         // sequence's stratification over power-of-two prefixes).

@@ -63,11 +63,36 @@ pub fn cornell_box(width: u32, height: u32) -> (Arc<Assets>, SceneState) {
     let rx = |d: f32| Quat::from_rotation_x(deg(d));
     let ry = |d: f32| Quat::from_rotation_y(deg(d));
     let objects = vec![
-        object("floor", Geometry::Quad, 0, rectangle(rx(-90.0), Vec3::new(0.0, -1.0, 0.0), 1.0, 1.0)),
-        object("ceiling", Geometry::Quad, 0, rectangle(rx(90.0), Vec3::new(0.0, 1.0, 0.0), 1.0, 1.0)),
-        object("back", Geometry::Quad, 0, rectangle(Quat::IDENTITY, Vec3::new(0.0, 0.0, -1.0), 1.0, 1.0)),
-        object("green-wall", Geometry::Quad, 1, rectangle(ry(-90.0), Vec3::new(1.0, 0.0, 0.0), 1.0, 1.0)),
-        object("red-wall", Geometry::Quad, 2, rectangle(ry(90.0), Vec3::new(-1.0, 0.0, 0.0), 1.0, 1.0)),
+        object(
+            "floor",
+            Geometry::Quad,
+            0,
+            rectangle(rx(-90.0), Vec3::new(0.0, -1.0, 0.0), 1.0, 1.0),
+        ),
+        object(
+            "ceiling",
+            Geometry::Quad,
+            0,
+            rectangle(rx(90.0), Vec3::new(0.0, 1.0, 0.0), 1.0, 1.0),
+        ),
+        object(
+            "back",
+            Geometry::Quad,
+            0,
+            rectangle(Quat::IDENTITY, Vec3::new(0.0, 0.0, -1.0), 1.0, 1.0),
+        ),
+        object(
+            "green-wall",
+            Geometry::Quad,
+            1,
+            rectangle(ry(-90.0), Vec3::new(1.0, 0.0, 0.0), 1.0, 1.0),
+        ),
+        object(
+            "red-wall",
+            Geometry::Quad,
+            2,
+            rectangle(ry(90.0), Vec3::new(-1.0, 0.0, 0.0), 1.0, 1.0),
+        ),
         object(
             "small-box",
             Geometry::Cube,
@@ -88,7 +113,12 @@ pub fn cornell_box(width: u32, height: u32) -> (Arc<Assets>, SceneState) {
                 scale: Vec3::new(0.6, 1.22, 0.6),
             },
         ),
-        object("light", Geometry::Quad, 3, rectangle(rx(90.0), Vec3::new(0.0, 0.99, 0.01), 0.23, 0.19)),
+        object(
+            "light",
+            Geometry::Quad,
+            3,
+            rectangle(rx(90.0), Vec3::new(0.0, 0.99, 0.01), 0.23, 0.19),
+        ),
     ];
     // Mitsuba's fov applies to the smaller axis (fov_axis "smaller"); ours is vertical.
     let fov = 39.3077f32.to_radians();
@@ -120,7 +150,12 @@ pub fn cornell_box(width: u32, height: u32) -> (Arc<Assets>, SceneState) {
 
 /// A sphere of the given material, alone in a constant environment of radiance
 /// `env`, seen from outside: the white-furnace set-up.
-pub fn furnace(material: Material, env: Vec3, max_depth: u32, spp: u32) -> (Arc<Assets>, SceneState) {
+pub fn furnace(
+    material: Material,
+    env: Vec3,
+    max_depth: u32,
+    spp: u32,
+) -> (Arc<Assets>, SceneState) {
     let state = SceneState {
         version: 1,
         seed: 7,
@@ -133,7 +168,12 @@ pub fn furnace(material: Material, env: Vec3, max_depth: u32, spp: u32) -> (Arc<
             aperture: 0.0,
             focus_distance: 0.0,
         },
-        objects: vec![object("ball", Geometry::Sphere { subdivisions: 4 }, 0, Transform::default())],
+        objects: vec![object(
+            "ball",
+            Geometry::Sphere { subdivisions: 4 },
+            0,
+            Transform::default(),
+        )],
         materials: vec![material],
         lights: Vec::new(),
         environment: Some(Environment { map: None, color: env, intensity: 1.0, rotation_deg: 0.0 }),

@@ -1,0 +1,148 @@
+//! `gridlight bench`: performance measurements printed as text or JSON lines.
+//!
+//! `bench trace [SCENE...]` renders each scene at 640×480, max depth 5, 4 spp on
+//! one thread. Without scenes it runs the built-in Cornell box and, when their
+//! assets are found on the search path, the bunny and Sponza scenes.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::Context;
+
+use super::GlobalArgs;
+use crate::bench::trace::{bench_scene, TraceReport, TraceSettings};
+use crate::render::testscenes;
+use crate::scene::{self, AssetSearchPath};
+
+/// Arguments of `gridlight bench`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub what: What,
+}
+
+/// What to measure.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum What {
+    /// Single-thread path-tracing throughput (samples and rays per second per core).
+    Trace(TraceArgs),
+}
+
+/// Arguments of `gridlight bench trace`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct TraceArgs {
+    /// Scene files (TOML); default: the Cornell box, plus bunny and Sponza when their
+    /// assets are found.
+    pub scenes: Vec<PathBuf>,
+    /// Print one JSON object per scene and line.
+    #[arg(long)]
+    pub json: bool,
+    /// Timed full-frame renders per scene; the median is reported.
+    #[arg(long, default_value_t = TraceSettings::default().runs)]
+    pub runs: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = TraceSettings::default().spp)]
+    pub spp: u32,
+    /// Maximum path length in segments (5 = camera ray plus four bounces).
+    #[arg(long, default_value_t = TraceSettings::default().max_depth)]
+    pub max_depth: u32,
+}
+
+/// The built-in scenes of the default benchmark, relative to the `scenes/` folder.
+const DEFAULT_SCENES: [&str; 3] = ["cornell-box.toml", "bunny.toml", "sponza.toml"];
+
+/// Runs `gridlight bench`.
+pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
+    match args.what {
+        What::Trace(args) => trace(args, global),
+    }
+}
+
+fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
+    let settings = TraceSettings {
+        spp: args.spp,
+        max_depth: args.max_depth,
+        runs: args.runs,
+        ..TraceSettings::default()
+    };
+    let reports: Vec<TraceReport> = if args.scenes.is_empty() {
+        default_scenes(global, settings)?
+    } else {
+        args.scenes
+            .iter()
+            .map(|path| bench_file(path, global, settings))
+            .collect::<anyhow::Result<_>>()?
+    };
+    for r in reports {
+        if args.json {
+            println!("{}", serde_json::to_string(&r)?);
+        } else {
+            println!(
+                "{}: {:.3} M samples/s/core, {:.2} M rays/s/core, {} triangles ({}x{}, {} spp, max depth {}, {:.2} s)",
+                r.scene,
+                r.samples_per_second_per_core / 1e6,
+                r.rays_per_second_per_core / 1e6,
+                r.triangles,
+                r.width,
+                r.height,
+                r.spp,
+                r.max_depth,
+                r.seconds
+            );
+        }
+    }
+    Ok(())
+}
+
+fn bench_file(
+    path: &Path,
+    global: &GlobalArgs,
+    settings: TraceSettings,
+) -> anyhow::Result<TraceReport> {
+    let resolver = AssetSearchPath::from_env(&global.assets, Some(path));
+    let loaded = scene::load(path, &resolver)?;
+    let name = path
+        .file_stem()
+        .map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned());
+    bench_scene(&name, Arc::new(loaded.assets), &loaded.state, settings)
+        .with_context(|| format!("rendering {}", path.display()))
+}
+
+/// The Cornell box always (from `scenes/` when present, else built in code), then the
+/// asset scenes whose assets are found; skipped ones are reported on stderr.
+fn default_scenes(
+    global: &GlobalArgs,
+    settings: TraceSettings,
+) -> anyhow::Result<Vec<TraceReport>> {
+    let dir = scenes_dir();
+    let mut reports = Vec::new();
+    for (i, file) in DEFAULT_SCENES.iter().enumerate() {
+        let path = dir.join(file);
+        if !path.is_file() {
+            if i == 0 {
+                let (assets, state) = testscenes::cornell_box(settings.width, settings.height);
+                reports.push(bench_scene("cornell-box", assets, &state, settings)?);
+            } else {
+                eprintln!("bench trace: skipping {}: not found", path.display());
+            }
+            continue;
+        }
+        match bench_file(&path, global, settings) {
+            Ok(r) => reports.push(r),
+            // Asset scenes are optional: their assets may be absent on this machine.
+            Err(err) if i > 0 => eprintln!("bench trace: skipping {}: {err:#}", path.display()),
+            Err(err) => return Err(err),
+        }
+    }
+    Ok(reports)
+}
+
+/// `scenes/` in the current directory, else the one of the source tree.
+fn scenes_dir() -> PathBuf {
+    let local = PathBuf::from("scenes");
+    if local.is_dir() {
+        local
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+    }
+}
