@@ -226,6 +226,35 @@ mod tests {
     }
 
     #[test]
+    fn radiance_travels_as_four_bytes_per_pixel_and_ragged_bytes_are_refused() {
+        let result = |n: usize| {
+            WorkerMsg::Result(JobResult {
+                frame: 1,
+                set: 2,
+                state_version: 3,
+                radiance: PackedRadiance::Rgb9e5(vec![0xdead_beef; n]),
+                render_us: 4,
+            })
+        };
+        let (small, big) =
+            (to_frame(&result(0)).expect("encode"), to_frame(&result(1000)).expect("encode"));
+        assert_eq!(
+            big.len() - small.len(),
+            4000 + 1,
+            "4 bytes per pixel; a bin16 header is one byte longer"
+        );
+        // Corrupt the bin length so that it is not whole words: a decode error, not a panic.
+        let mut bytes = to_frame(&result(1)).expect("encode");
+        let bin = bytes.windows(2).position(|w| w == [0xc4, 4]).expect("bin8 header");
+        bytes[bin + 1] = 3;
+        bytes.remove(bin + 2);
+        let len = (bytes.len() - LEN_PREFIX) as u32;
+        bytes[..LEN_PREFIX].copy_from_slice(&len.to_be_bytes());
+        let err = MasterCodec::new().decode(&mut BytesMut::from(&bytes[..])).unwrap_err();
+        assert!(err.to_string().contains("whole u32 words"), "{err}");
+    }
+
+    #[test]
     fn master_messages_roundtrip() {
         let msg = MasterMsg::Welcome {
             worker_id: 5,

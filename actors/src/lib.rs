@@ -4,6 +4,16 @@
 //! This crate knows nothing of rendering, windows or wgpu: the display actor hands
 //! frames to a sink trait, and the `gridlight` crate plugs the renderer, the
 //! reconstruction and the window into it (DESIGN.md, Layout).
+//!
+//! # Layout
+//! - Wire: [`protocol`] (messages and invariants), [`codec`] (length-prefixed
+//!   MessagePack), [`auth`] (HMAC challenge), [`packing`] (RGB9E5), [`sets`] (pixel sets).
+//! - Values: [`state`] (scene state), [`edit`] and [`script`] (changes to it).
+//! - Actors, one per file: [`listener`], [`connection`], [`scheduler`], [`assembler`],
+//!   [`display`], [`scene_holder`]; their pure logic: [`job_queue`], [`frame_table`],
+//!   [`wait_heuristic`], [`accumulate`]; [`supervisor`] is the restart policy.
+//! - Entry point: [`master::start`] → [`master::MasterHandle`]; frames leave through a
+//!   [`sink::FrameSink`]; [`stats`] and [`asset_store`] support them.
 
 pub mod accumulate;
 pub mod assembler;

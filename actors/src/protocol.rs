@@ -43,7 +43,8 @@ use serde::{Deserialize, Serialize};
 use crate::state::{SceneState, StateVersion};
 
 /// Bumped on every incompatible change of any message below.
-pub const PROTOCOL_VERSION: u32 = 1;
+/// 2: RGB9E5 radiance travels as one MessagePack `bin` of little-endian `u32`s.
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
@@ -96,7 +97,55 @@ pub struct AssetEntry {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum PackedRadiance {
     /// Shared-exponent RGB9E5, one `u32` per pixel (non-negative, finite by construction).
-    Rgb9e5(Vec<u32>),
+    /// On the wire: a single `bin` of 4 bytes per pixel, little-endian (4 bytes/pixel
+    /// instead of MessagePack's 5 per large integer, and decoded by copying).
+    Rgb9e5(#[serde(with = "le_u32_bytes")] Vec<u32>),
+}
+
+/// `Vec<u32>` as one byte string of little-endian words.
+mod le_u32_bytes {
+    use serde::de::{Error, Visitor};
+    use serde::{Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &[u32], s: S) -> Result<S::Ok, S::Error> {
+        let mut bytes = Vec::with_capacity(v.len() * 4);
+        for w in v {
+            bytes.extend_from_slice(&w.to_le_bytes());
+        }
+        s.serialize_bytes(&bytes)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<u32>, D::Error> {
+        d.deserialize_bytes(WordsVisitor)
+    }
+
+    struct WordsVisitor;
+
+    impl<'de> Visitor<'de> for WordsVisitor {
+        type Value = Vec<u32>;
+
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a byte string of little-endian u32 words")
+        }
+
+        fn visit_bytes<E: Error>(self, b: &[u8]) -> Result<Vec<u32>, E> {
+            if !b.len().is_multiple_of(4) {
+                return Err(E::custom(format!(
+                    "packed radiance of {} bytes is not whole u32 words",
+                    b.len()
+                )));
+            }
+            Ok(b.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+        }
+
+        fn visit_borrowed_bytes<E: Error>(self, b: &'de [u8]) -> Result<Vec<u32>, E> {
+            self.visit_bytes(b)
+        }
+
+        fn visit_byte_buf<E: Error>(self, b: Vec<u8>) -> Result<Vec<u32>, E> {
+            self.visit_bytes(&b)
+        }
+    }
 }
 
 impl PackedRadiance {
