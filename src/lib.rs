@@ -11,6 +11,7 @@
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
 //! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
 //! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
+//! - [`faults`]: fault injection: TCP proxy, invariant checks, worker harness, RSS.
 //! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
 //! - [`render`]: the path tracer (BVHs, materials, lights, the per-pixel kernel).
 //! - [`bench`]: benchmarks behind `gridlight bench` (kernel throughput).
@@ -23,6 +24,7 @@ pub mod bench;
 pub mod children;
 pub mod cli;
 pub mod eval;
+pub mod faults;
 pub mod gpu;
 pub mod image_io;
 pub mod reconstruct;

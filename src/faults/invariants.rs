@@ -1,0 +1,273 @@
+//! The invariants every fault run checks, fed by the master's shown frames and counters.
+//!
+//! - Frames keep being shown whenever at least one worker is alive: the gap between two
+//!   shown frames (not counting time with no live worker) stays below a bound.
+//! - Every covered pixel of a shown frame came from a result of that frame: workers run
+//!   the null renderer, whose radiance names its frame, so a pixel of another frame is
+//!   seen at once.
+//! - No frame holds more results than it has jobs (S), and the master never accepts
+//!   more results than it handed out jobs.
+//!
+//! [`CheckingSink`] is the master's frame sink in the harness; the harness tells the
+//! checker how many workers are alive ([`Checker::note_live`]).
+
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+use gridlight_actors::master::{ShownFrame, SinkError};
+use gridlight_actors::protocol::FrameNo;
+use gridlight_actors::sink::FrameSink;
+use gridlight_actors::stats::Counters;
+
+/// Violations kept verbatim; beyond this only the count grows (bounded memory).
+const MAX_KEPT: usize = 32;
+
+/// The bounds a run is checked against.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// S: jobs per frame.
+    pub sets: u32,
+    /// Longest acceptable time between shown frames while a worker is alive.
+    pub max_gap: Duration,
+}
+
+/// Radiance a covered pixel of `frame` must have (the null renderer's).
+pub type ExpectedRadiance = fn(FrameNo) -> Vec3;
+
+/// Running state of the checks.
+#[derive(Debug)]
+pub struct Checker {
+    limits: Limits,
+    expected: Option<ExpectedRadiance>,
+    /// Start of the current gap; `None` while no worker is alive.
+    gap_start: Option<Instant>,
+    gap_reported: bool,
+    live: usize,
+    longest_gap: Duration,
+    frames_shown: u64,
+    last_frame: Option<FrameNo>,
+    violations: u64,
+    kept: Vec<String>,
+}
+
+impl Checker {
+    pub fn new(limits: Limits, expected: Option<ExpectedRadiance>) -> Self {
+        Self {
+            limits,
+            expected,
+            gap_start: None,
+            gap_reported: false,
+            live: 0,
+            longest_gap: Duration::ZERO,
+            frames_shown: 0,
+            last_frame: None,
+            violations: 0,
+            kept: Vec::new(),
+        }
+    }
+
+    /// The number of live workers changed; the gap clock only runs while it is ≥ 1.
+    pub fn note_live(&mut self, live: usize, now: Instant) {
+        self.tick(now);
+        if live == 0 {
+            self.gap_start = None;
+        } else if self.live == 0 || self.gap_start.is_none() {
+            self.gap_start = Some(now);
+            self.gap_reported = false;
+        }
+        self.live = live;
+    }
+
+    /// Checks the gap so far (call now and then: a stopped display shows nothing).
+    pub fn tick(&mut self, now: Instant) {
+        let Some(start) = self.gap_start else { return };
+        let gap = now.saturating_duration_since(start);
+        self.longest_gap = self.longest_gap.max(gap);
+        if gap > self.limits.max_gap && !self.gap_reported {
+            self.gap_reported = true;
+            let (ms, max) = (gap.as_millis(), self.limits.max_gap.as_millis());
+            self.violate(format!("no frame shown for {ms} ms with a worker alive (max {max} ms)"));
+        }
+    }
+
+    /// Checks one shown frame.
+    pub fn on_frame(&mut self, f: &ShownFrame, now: Instant) {
+        self.tick(now);
+        if self.live > 0 {
+            self.gap_start = Some(now);
+            self.gap_reported = false;
+        }
+        self.frames_shown += 1;
+        if let Some(last) = self.last_frame {
+            if f.frame <= last {
+                self.violate(format!("frame {} shown after frame {last}", f.frame));
+            }
+        }
+        self.last_frame = Some(f.frame);
+        if f.stats.jobs_back > self.limits.sets {
+            let (n, s) = (f.stats.jobs_back, self.limits.sets);
+            self.violate(format!("frame {} holds {n} results, S = {s}", f.frame));
+        }
+        if let Some(expected) = self.expected {
+            let want = expected(f.frame);
+            let foreign = f
+                .current
+                .iter()
+                .zip(&f.current_mask)
+                .filter(|(v, covered)| **covered && (**v - want).abs().max_element() > 1e-3)
+                .count();
+            if foreign > 0 {
+                self.violate(format!(
+                    "frame {}: {foreign} pixels hold radiance of another frame",
+                    f.frame
+                ));
+            }
+        }
+    }
+
+    /// Checks the master's counters.
+    pub fn check_counters(&mut self, c: &Counters) {
+        let accepted = Counters::get(&c.results_accepted);
+        let handed = Counters::get(&c.jobs_handed_out);
+        if accepted > handed {
+            self.violate(format!("{accepted} results accepted but only {handed} jobs handed out"));
+        }
+    }
+
+    /// Records a violation found elsewhere (the master exited, a worker was not served).
+    pub fn violate(&mut self, what: String) {
+        tracing::error!(violation = %what, "invariant violated");
+        self.violations += 1;
+        if self.kept.len() < MAX_KEPT {
+            self.kept.push(what);
+        }
+    }
+
+    pub fn frames_shown(&self) -> u64 {
+        self.frames_shown
+    }
+
+    pub fn longest_gap(&self) -> Duration {
+        self.longest_gap
+    }
+
+    pub fn violations(&self) -> u64 {
+        self.violations
+    }
+
+    /// The first violations, verbatim.
+    pub fn violation_texts(&self) -> &[String] {
+        &self.kept
+    }
+}
+
+/// A checker shared between the master's sink thread and the harness.
+pub type SharedChecker = Arc<Mutex<Checker>>;
+
+/// Locks a shared checker (a poisoned lock still holds valid counts).
+pub fn lock(c: &SharedChecker) -> MutexGuard<'_, Checker> {
+    c.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The master's frame sink in the harness: checks every shown frame.
+pub struct CheckingSink(pub SharedChecker);
+
+impl FrameSink for CheckingSink {
+    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
+        lock(&self.0).on_frame(&frame, Instant::now());
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gridlight_actors::master::FrameStats;
+    use gridlight_actors::state::{Camera, RenderSettings, Resolution, SceneState};
+
+    fn limits() -> Limits {
+        Limits { sets: 4, max_gap: Duration::from_millis(100) }
+    }
+
+    fn shown(frame: FrameNo, values: Vec<Vec3>, jobs_back: u32) -> ShownFrame {
+        let state = SceneState {
+            version: 1,
+            seed: 0,
+            resolution: Resolution { width: values.len() as u32, height: 1 },
+            camera: Camera {
+                position: Vec3::Z,
+                look_at: Vec3::ZERO,
+                up: Vec3::Y,
+                vfov_deg: 40.0,
+                aperture: 0.0,
+                focus_distance: 1.0,
+            },
+            objects: vec![],
+            materials: vec![],
+            lights: vec![],
+            environment: None,
+            render: RenderSettings::default(),
+        };
+        let n = values.len();
+        ShownFrame {
+            frame,
+            state: Arc::new(state),
+            current_mask: values.iter().map(|v| *v != Vec3::ZERO).collect(),
+            current: values,
+            accumulated: vec![Vec3::ZERO; n],
+            accumulated_frames: vec![0; n],
+            stats: FrameStats { frame, jobs_back, jobs_total: 4, ..Default::default() },
+        }
+    }
+
+    fn expected(frame: FrameNo) -> Vec3 {
+        Vec3::splat(frame as f32)
+    }
+
+    #[test]
+    fn a_pixel_of_another_frame_and_too_many_results_are_violations() {
+        let mut c = Checker::new(limits(), Some(expected));
+        let t = Instant::now();
+        c.note_live(1, t);
+        c.on_frame(&shown(2, vec![Vec3::splat(2.0), Vec3::ZERO], 4), t);
+        assert_eq!(c.violations(), 0, "{:?}", c.violation_texts());
+        c.on_frame(&shown(3, vec![Vec3::splat(2.0), Vec3::splat(3.0)], 4), t);
+        assert_eq!(c.violations(), 1);
+        c.on_frame(&shown(4, vec![Vec3::splat(4.0)], 5), t);
+        assert_eq!(c.violations(), 2);
+        c.on_frame(&shown(4, vec![Vec3::splat(4.0)], 1), t);
+        assert_eq!(c.violations(), 3, "a frame shown twice was not noticed");
+        assert_eq!(c.frames_shown(), 4);
+    }
+
+    #[test]
+    fn gaps_count_only_while_a_worker_is_alive() {
+        let mut c = Checker::new(limits(), None);
+        let t = Instant::now();
+        c.note_live(1, t);
+        c.tick(t + Duration::from_millis(50));
+        assert_eq!(c.violations(), 0);
+        c.note_live(0, t + Duration::from_millis(60));
+        c.tick(t + Duration::from_secs(10));
+        assert_eq!(c.violations(), 0, "a gap without workers was counted");
+        c.note_live(2, t + Duration::from_secs(10));
+        c.tick(t + Duration::from_secs(11));
+        c.tick(t + Duration::from_secs(12));
+        assert_eq!(c.violations(), 1, "one long gap is one violation");
+        assert!(c.longest_gap() >= Duration::from_secs(2));
+    }
+
+    #[test]
+    fn more_results_than_jobs_is_a_violation() {
+        let mut c = Checker::new(limits(), None);
+        let counters = Counters::default();
+        Counters::add(&counters.jobs_handed_out, 3);
+        Counters::add(&counters.results_accepted, 3);
+        c.check_counters(&counters);
+        assert_eq!(c.violations(), 0);
+        Counters::add(&counters.results_accepted, 1);
+        c.check_counters(&counters);
+        assert_eq!(c.violations(), 1);
+    }
+}
