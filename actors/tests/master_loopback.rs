@@ -330,3 +330,47 @@ fn the_master_stops_after_max_frames_and_the_sink_sees_every_frame() {
     stop.store(true, Ordering::Relaxed);
     let _ = w.join();
 }
+
+#[test]
+fn connections_over_the_cap_are_refused_with_a_reason() {
+    let (sink, _rx) = collect_sink();
+    let mut c = config();
+    c.max_connections = 1;
+    let m = start(c, scene(), AssetStore::new(), sink).expect("start");
+    let mut first = Peer::connect(m.local_addr());
+    first.handshake(None).expect("first connection served");
+    let mut second = Peer::connect(m.local_addr());
+    assert!(second.expect_rejected().contains("full"));
+    drop(first);
+    // Once the first is gone its place is free again.
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    loop {
+        let mut p = Peer::connect(m.local_addr());
+        match p.handshake(None) {
+            Ok(_) => break,
+            Err(e) if std::time::Instant::now() < deadline && e.contains("full") => {
+                thread::sleep(Duration::from_millis(20))
+            }
+            Err(e) => panic!("not served after the first left: {e}"),
+        }
+    }
+}
+
+#[test]
+fn a_worker_joining_mid_run_gets_work_within_a_frame() {
+    let (m, rx) = master();
+    let stop = Arc::new(AtomicBool::new(false));
+    let busy = null_worker(m.local_addr(), stop.clone());
+    rx.recv_timeout(Duration::from_secs(10)).expect("frames with one worker");
+    let mut late = Peer::connect(m.local_addr());
+    late.handshake(None).expect("handshake");
+    late.send(&WorkerMsg::Ready { credits: 1 });
+    let shown_before = m.report().shown + m.report().skipped;
+    let (_, _, _, state) = late.next_job().expect("a job");
+    assert!(state.is_some(), "state not sent before the first job");
+    let displayed = m.report().shown + m.report().skipped;
+    assert!(displayed <= shown_before + 1, "waited {} frames for work", displayed - shown_before);
+    stop.store(true, Ordering::Relaxed);
+    drop(m);
+    let _ = busy.join();
+}
