@@ -102,7 +102,7 @@ pub struct Peer {
 impl Peer {
     pub fn connect(addr: SocketAddr) -> Self {
         let stream = TcpStream::connect(addr).expect("connect");
-        stream.set_read_timeout(Some(Duration::from_secs(10))).expect("timeout");
+        stream.set_read_timeout(Some(Duration::from_secs(30))).expect("timeout");
         stream.set_nodelay(true).expect("nodelay");
         Self { stream, codec: WorkerCodec::new(), buf: BytesMut::new() }
     }

@@ -140,7 +140,7 @@ fn frames_hold_only_their_own_results_and_no_set_is_handed_out_twice() {
     let workers: Vec<_> = (0..2).map(|_| null_worker(m.local_addr(), stop.clone())).collect();
     let mut shown = Vec::new();
     while shown.len() < 6 {
-        shown.push(rx.recv_timeout(Duration::from_secs(10)).expect("a frame"));
+        shown.push(rx.recv_timeout(Duration::from_secs(30)).expect("a frame"));
     }
     stop.store(true, Ordering::Relaxed);
     drop(m);
@@ -179,7 +179,7 @@ fn late_and_duplicate_results_are_dropped_and_counted_and_the_worker_gets_new_wo
     slow.handshake(None).expect("handshake");
     slow.send(&WorkerMsg::Ready { credits: 1 });
     let (frame, set, version, _) = slow.next_job().expect("job");
-    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
     while m.report().skipped == 0 && std::time::Instant::now() < deadline {
         thread::sleep(Duration::from_millis(5));
     }
@@ -361,7 +361,7 @@ fn a_worker_joining_mid_run_gets_work_and_the_state_first() {
     let (m, rx) = master();
     let stop = Arc::new(AtomicBool::new(false));
     let busy = null_worker(m.local_addr(), stop.clone());
-    rx.recv_timeout(Duration::from_secs(10)).expect("frames with one worker");
+    rx.recv_timeout(Duration::from_secs(30)).expect("frames with one worker");
     let mut late = Peer::connect(m.local_addr());
     late.handshake(None).expect("handshake");
     late.send(&WorkerMsg::Ready { credits: 1 });
