@@ -134,6 +134,14 @@ pub fn start(
     let socket = std::net::TcpListener::bind(config.listen)?;
     socket.set_nonblocking(true)?;
     let local_addr = socket.local_addr()?;
+    if config.secret.is_none() {
+        tracing::warn!(
+            listen = %local_addr,
+            "no shared secret: any host that can reach this address may join and contribute pixels"
+        );
+    } else {
+        tracing::info!(listen = %local_addr, "workers must prove the shared secret");
+    }
     let report = Arc::new(Report::default());
     let counters = Arc::new(Counters::default());
     let (tx, rx) = std::sync::mpsc::channel();
