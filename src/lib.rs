@@ -15,6 +15,7 @@
 //! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
 //! - [`render`]: the path tracer (BVHs, materials, lights, the per-pixel kernel).
 //! - [`bench`]: benchmarks behind `gridlight bench` (kernel throughput).
+//! - [`window`]: the interactive window (winit + wgpu + egui) with live scene editing.
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
 //! `gridlight-actors` crate, which this crate depends on and never the reverse.
@@ -32,5 +33,6 @@ pub mod render;
 pub mod scene;
 pub mod shapes;
 pub mod worker;
+pub mod window;
 
 pub use gridlight_actors as actors;

@@ -1,0 +1,236 @@
+//! The window's scene edits: absolute new values for one part of the scene state, as the
+//! controls and the panel produce them, and how they apply to the window's copy of the state.
+//!
+//! The window keeps its own copy of the scene state so that successive drags compose at
+//! once, without waiting for the master to echo a new version; each edit also goes to the
+//! master, which makes the new state version the workers render.
+
+use glam::Vec3;
+use gridlight_actors::state::{
+    Camera, Environment, Light, Material, MaterialId, SceneState, Transform,
+};
+use thiserror::Error;
+
+/// One change to the scene state, as an absolute value for the part it names.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SceneEdit {
+    Camera(Camera),
+    /// New transform of object `object` (index into `SceneState::objects`).
+    ObjectTransform {
+        object: u32,
+        transform: Transform,
+    },
+    Material {
+        id: MaterialId,
+        material: Material,
+    },
+    Light {
+        index: u32,
+        light: Light,
+    },
+    Environment(Option<Environment>),
+}
+
+/// An edit that names something the state does not have.
+#[derive(Debug, Error, PartialEq)]
+pub enum EditError {
+    #[error("no object {0} in the scene")]
+    NoObject(u32),
+    #[error("no material {0} in the scene")]
+    NoMaterial(MaterialId),
+    #[error("no light {0} in the scene")]
+    NoLight(u32),
+}
+
+impl SceneEdit {
+    /// Applies the edit to `state` (the version is the master's business and stays).
+    pub fn apply(&self, state: &mut SceneState) -> Result<(), EditError> {
+        match self {
+            SceneEdit::Camera(camera) => state.camera = *camera,
+            SceneEdit::ObjectTransform { object, transform } => {
+                let slot =
+                    state.objects.get_mut(*object as usize).ok_or(EditError::NoObject(*object))?;
+                slot.transform = *transform;
+            }
+            SceneEdit::Material { id, material } => {
+                let slot =
+                    state.materials.get_mut(*id as usize).ok_or(EditError::NoMaterial(*id))?;
+                *slot = material.clone();
+            }
+            SceneEdit::Light { index, light } => {
+                let slot =
+                    state.lights.get_mut(*index as usize).ok_or(EditError::NoLight(*index))?;
+                *slot = *light;
+            }
+            SceneEdit::Environment(environment) => state.environment = environment.clone(),
+        }
+        Ok(())
+    }
+}
+
+/// What an edit replaces; two edits with the same target coalesce into the later one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Target {
+    Camera,
+    Object(u32),
+    Material(MaterialId),
+    Light(u32),
+    Environment,
+}
+
+impl SceneEdit {
+    fn target(&self) -> Target {
+        match self {
+            SceneEdit::Camera(_) => Target::Camera,
+            SceneEdit::ObjectTransform { object, .. } => Target::Object(*object),
+            SceneEdit::Material { id, .. } => Target::Material(*id),
+            SceneEdit::Light { index, .. } => Target::Light(*index),
+            SceneEdit::Environment(_) => Target::Environment,
+        }
+    }
+}
+
+/// Edits waiting to be sent to the master. A mouse drag produces an edit per input event;
+/// every edit the master receives makes a new scene state (and restarts accumulation), so
+/// the window sends at most one edit per target per drawn frame: the newest.
+#[derive(Clone, Debug, Default)]
+pub struct EditQueue {
+    pending: Vec<SceneEdit>,
+}
+
+impl EditQueue {
+    /// Queues `edit`, replacing a queued edit of the same target in place.
+    pub fn push(&mut self, edit: SceneEdit) {
+        match self.pending.iter_mut().find(|e| e.target() == edit.target()) {
+            Some(queued) => *queued = edit,
+            None => self.pending.push(edit),
+        }
+    }
+
+    /// Takes the queued edits, in the order their targets were first edited.
+    pub fn drain(&mut self) -> Vec<SceneEdit> {
+        std::mem::take(&mut self.pending)
+    }
+
+    /// True when nothing is queued.
+    pub fn is_empty(&self) -> bool {
+        self.pending.is_empty()
+    }
+}
+
+/// Splits an RGB power into a colour whose largest channel is 1 and a scalar intensity, so
+/// the panel can offer a colour picker and an intensity slider; black gives white × 0.
+pub fn split_power(power: Vec3) -> (Vec3, f32) {
+    let intensity = power.max_element();
+    if intensity > 0.0 && intensity.is_finite() {
+        (power / intensity, intensity)
+    } else {
+        (Vec3::ONE, 0.0)
+    }
+}
+
+/// The RGB power of a colour at an intensity (inverse of [`split_power`]).
+pub fn join_power(colour: Vec3, intensity: f32) -> Vec3 {
+    colour * intensity.max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gridlight_actors::state::{Geometry, MaterialKind, Object, RenderSettings, Resolution};
+
+    fn state() -> SceneState {
+        SceneState {
+            version: 3,
+            seed: 1,
+            resolution: Resolution { width: 8, height: 6 },
+            camera: Camera {
+                position: Vec3::new(0.0, 0.0, 4.0),
+                look_at: Vec3::ZERO,
+                up: Vec3::Y,
+                vfov_deg: 40.0,
+                aperture: 0.0,
+                focus_distance: 4.0,
+            },
+            objects: vec![Object {
+                name: "box".into(),
+                geometry: Geometry::Cube,
+                transform: Transform::default(),
+                materials: vec![0],
+                visible: true,
+            }],
+            materials: vec![Material {
+                name: "white".into(),
+                kind: MaterialKind::Diffuse,
+                base_color: Vec3::splat(0.8),
+                base_color_texture: None,
+                roughness: 1.0,
+                ior: 1.5,
+                emission: Vec3::ZERO,
+            }],
+            lights: vec![Light::Point { position: Vec3::Y, intensity: Vec3::splat(5.0) }],
+            environment: None,
+            render: RenderSettings::default(),
+        }
+    }
+
+    #[test]
+    fn edits_replace_the_named_part_only() {
+        let mut s = state();
+        let moved = Transform { translation: Vec3::X, ..Transform::default() };
+        SceneEdit::ObjectTransform { object: 0, transform: moved }.apply(&mut s).expect("object 0");
+        assert_eq!(s.objects[0].transform, moved);
+        let mut glass = s.materials[0].clone();
+        glass.kind = MaterialKind::Dielectric;
+        SceneEdit::Material { id: 0, material: glass.clone() }.apply(&mut s).expect("material 0");
+        assert_eq!(s.materials[0], glass);
+        let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
+        SceneEdit::Light { index: 0, light }.apply(&mut s).expect("light 0");
+        assert_eq!(s.lights[0], light);
+        let cam = Camera { vfov_deg: 60.0, ..s.camera };
+        SceneEdit::Camera(cam).apply(&mut s).expect("camera");
+        assert_eq!(s.camera, cam);
+        assert_eq!(s.version, 3, "only the master bumps versions");
+        assert_eq!(s.objects[0].name, "box");
+    }
+
+    #[test]
+    fn edits_naming_missing_parts_fail_and_change_nothing() {
+        let mut s = state();
+        let before = s.clone();
+        let t = Transform::default();
+        assert_eq!(
+            SceneEdit::ObjectTransform { object: 5, transform: t }.apply(&mut s),
+            Err(EditError::NoObject(5))
+        );
+        let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
+        assert_eq!(SceneEdit::Light { index: 1, light }.apply(&mut s), Err(EditError::NoLight(1)));
+        assert_eq!(s, before);
+    }
+
+    #[test]
+    fn queue_keeps_the_newest_edit_per_target_in_first_edit_order() {
+        let cam = |fov| SceneEdit::Camera(Camera { vfov_deg: fov, ..state().camera });
+        let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
+        let mut q = EditQueue::default();
+        q.push(cam(30.0));
+        q.push(SceneEdit::Light { index: 0, light });
+        q.push(cam(50.0));
+        q.push(SceneEdit::Light { index: 1, light });
+        let drained = q.drain();
+        assert_eq!(drained.len(), 3);
+        assert_eq!(drained[0], cam(50.0));
+        assert_eq!(drained[1], SceneEdit::Light { index: 0, light });
+        assert!(q.is_empty());
+    }
+
+    #[test]
+    fn power_splits_and_joins_back() {
+        let (colour, intensity) = split_power(Vec3::new(18.0, 9.0, 4.5));
+        assert_eq!(intensity, 18.0);
+        assert_eq!(colour, Vec3::new(1.0, 0.5, 0.25));
+        assert_eq!(join_power(colour, intensity), Vec3::new(18.0, 9.0, 4.5));
+        assert_eq!(split_power(Vec3::ZERO), (Vec3::ONE, 0.0));
+        assert_eq!(join_power(Vec3::ONE, -2.0), Vec3::ZERO);
+    }
+}

@@ -1,0 +1,97 @@
+//! Where the rendered picture sits in the window, and the way back from a window pixel to a
+//! render pixel (for picking and dragging).
+//!
+//! The render resolution is the scene's and does not follow the window: the picture is
+//! scaled uniformly to fit the area left of the side panel and centred there, with bars
+//! where the aspect ratios differ.
+
+use glam::Vec2;
+
+/// An axis-aligned rectangle in physical window pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rect {
+    pub x: f32,
+    pub y: f32,
+    pub width: f32,
+    pub height: f32,
+}
+
+impl Rect {
+    /// True when `p` lies inside (left/top edges inclusive, right/bottom exclusive).
+    pub fn contains(&self, p: Vec2) -> bool {
+        p.x >= self.x && p.y >= self.y && p.x < self.x + self.width && p.y < self.y + self.height
+    }
+}
+
+/// The largest rectangle with the picture's aspect ratio that fits in `area`, centred.
+/// `None` when either the area or the picture is empty.
+pub fn fit(area: Rect, picture_width: u32, picture_height: u32) -> Option<Rect> {
+    if area.width < 1.0 || area.height < 1.0 || picture_width == 0 || picture_height == 0 {
+        return None;
+    }
+    let scale = (area.width / picture_width as f32).min(area.height / picture_height as f32);
+    let (width, height) = (picture_width as f32 * scale, picture_height as f32 * scale);
+    Some(Rect {
+        x: area.x + (area.width - width) * 0.5,
+        y: area.y + (area.height - height) * 0.5,
+        width,
+        height,
+    })
+}
+
+/// The render-pixel coordinates (continuous, (0,0) the top-left corner of the picture) under
+/// window position `p`, or `None` when `p` is outside the picture.
+pub fn window_to_picture(
+    shown: Rect,
+    picture_width: u32,
+    picture_height: u32,
+    p: Vec2,
+) -> Option<Vec2> {
+    if !shown.contains(p) {
+        return None;
+    }
+    Some(Vec2::new(
+        (p.x - shown.x) / shown.width * picture_width as f32,
+        (p.y - shown.y) / shown.height * picture_height as f32,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wide_area_gets_side_bars() {
+        let area = Rect { x: 0.0, y: 0.0, width: 1000.0, height: 480.0 };
+        let shown = fit(area, 640, 480).expect("non-empty");
+        assert_eq!(shown, Rect { x: 180.0, y: 0.0, width: 640.0, height: 480.0 });
+    }
+
+    #[test]
+    fn tall_area_gets_top_and_bottom_bars_and_scales() {
+        let area = Rect { x: 10.0, y: 0.0, width: 320.0, height: 1000.0 };
+        let shown = fit(area, 640, 480).expect("non-empty");
+        assert_eq!(shown.width, 320.0);
+        assert_eq!(shown.height, 240.0);
+        assert_eq!(shown.x, 10.0);
+        assert_eq!(shown.y, 380.0);
+    }
+
+    #[test]
+    fn empty_inputs_fit_nothing() {
+        let area = Rect { x: 0.0, y: 0.0, width: 0.0, height: 100.0 };
+        assert!(fit(area, 640, 480).is_none());
+        let area = Rect { x: 0.0, y: 0.0, width: 100.0, height: 100.0 };
+        assert!(fit(area, 0, 480).is_none());
+    }
+
+    #[test]
+    fn window_to_picture_maps_corners_and_rejects_bars() {
+        let shown = Rect { x: 180.0, y: 0.0, width: 320.0, height: 240.0 };
+        let at = |x, y| window_to_picture(shown, 640, 480, Vec2::new(x, y));
+        assert_eq!(at(180.0, 0.0), Some(Vec2::ZERO));
+        assert_eq!(at(340.0, 120.0), Some(Vec2::new(320.0, 240.0)));
+        assert_eq!(at(179.0, 10.0), None);
+        assert_eq!(at(500.0, 10.0), None, "the right edge is exclusive");
+    }
+}

@@ -1,0 +1,411 @@
+//! The side panel (egui): status, view and camera mode, pacing sliders, and editors for
+//! the selected object's material, the lights and the environment.
+//!
+//! The panel draws plain data ([`PanelModel`]) and reports what the user did as
+//! [`PanelAction`]s; the app turns those into edits and master messages. Editors work on
+//! copies and emit an action only when a value really changed.
+
+use glam::Vec3;
+use gridlight_actors::state::{Environment, Light, MaterialKind, SceneState};
+
+use super::camera::CameraMode;
+use super::edits::{join_power, split_power, SceneEdit};
+use super::picture::View;
+use super::status::{human_bytes, StatusView};
+
+/// Pacing of frames as the panel edits it (paper §4.3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PacingChoice {
+    /// The wait heuristic with its four bounds.
+    Heuristic { q_min: f32, q_max: f32, i_min: f32, i_max: f32 },
+    /// A fixed frame rate.
+    FixedFps(f32),
+}
+
+/// File format of the screenshot key.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ShotFormat {
+    /// Tonemapped sRGB, what the window shows.
+    #[default]
+    Png,
+    /// Linear radiance (final colour before tonemapping).
+    Exr,
+}
+
+/// Panel settings that live as long as the window.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PanelSettings {
+    pub view: View,
+    pub camera_mode: CameraMode,
+    pub pacing: PacingChoice,
+    pub shot_format: ShotFormat,
+    /// True while the session's edits are being recorded.
+    pub recording: bool,
+}
+
+/// What the panel shows this frame.
+pub struct PanelModel<'a> {
+    /// The window's copy of the scene state (edits already applied).
+    pub scene: &'a SceneState,
+    /// Index of the picked object.
+    pub selected: Option<u32>,
+    pub status: &'a StatusView,
+    /// Environment maps the scene offers (asset paths).
+    pub environment_maps: &'a [String],
+    /// Recorded edits so far.
+    pub recorded: usize,
+    /// A line about the last screenshot or script save, or an error.
+    pub message: &'a str,
+}
+
+/// Something the user did in the panel.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PanelAction {
+    Edit(SceneEdit),
+    Pacing(PacingChoice),
+    ResetCamera,
+    Deselect,
+    Screenshot,
+    SaveScript,
+}
+
+/// Width of the side panel in logical points.
+pub const PANEL_WIDTH: f32 = 300.0;
+
+/// Draws the panel, [`PANEL_WIDTH`] wide, on the right of `ui` and returns the user's actions.
+pub fn show(
+    ui: &mut egui::Ui,
+    model: &PanelModel,
+    settings: &mut PanelSettings,
+) -> Vec<PanelAction> {
+    let mut actions = Vec::new();
+    egui::Panel::right("gridlight-panel").resizable(false).exact_size(PANEL_WIDTH).show(ui, |ui| {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            status_section(ui, model.status);
+            ui.separator();
+            view_section(ui, settings, &mut actions);
+            ui.separator();
+            pacing_section(ui, settings, &mut actions);
+            ui.separator();
+            selection_section(ui, model, &mut actions);
+            ui.separator();
+            lights_section(ui, model.scene, &mut actions);
+            ui.separator();
+            environment_section(ui, model, &mut actions);
+            ui.separator();
+            record_section(ui, model, settings, &mut actions);
+        });
+    });
+    actions
+}
+
+fn status_section(ui: &mut egui::Ui, s: &StatusView) {
+    ui.heading("Status");
+    egui::Grid::new("status").num_columns(2).show(ui, |ui| {
+        let mut row = |label: &str, value: String| {
+            ui.label(label);
+            ui.label(value);
+            ui.end_row();
+        };
+        row("fps", format!("{:.1}", s.fps));
+        row("frame / state", format!("{} / v{}", s.frame, s.state_version));
+        row("Q_t", format!("{:.2} ({}/{} jobs)", s.q, s.jobs_back, s.jobs_total));
+        row("I_t", format!("{:.2}", s.i));
+        row("frames skipped", s.frames_skipped.to_string());
+        row("dropped late", s.dropped_late.to_string());
+        row("not drawn (newer came)", s.frames_replaced.to_string());
+        row(
+            "bytes in / out",
+            format!("{} / {}", human_bytes(s.bytes_in), human_bytes(s.bytes_out)),
+        );
+        row("reconstruction", s.reconstructor.clone());
+        row("adapter", s.adapter.clone());
+    });
+    ui.collapsing(format!("Workers ({})", s.workers.len()), |ui| {
+        egui::Grid::new("workers").num_columns(4).striped(true).show(ui, |ui| {
+            for h in ["name", "cores", "jobs/s", "seen"] {
+                ui.strong(h);
+            }
+            ui.end_row();
+            for w in &s.workers {
+                ui.label(&w.name);
+                ui.label(w.cores.to_string());
+                ui.label(format!("{:.1}", w.jobs_per_second));
+                ui.label(format!("{:.1} s ago", w.last_seen_s));
+                ui.end_row();
+            }
+        });
+    });
+}
+
+fn view_section(ui: &mut egui::Ui, settings: &mut PanelSettings, actions: &mut Vec<PanelAction>) {
+    ui.heading("View");
+    ui.horizontal_wrapped(|ui| {
+        for view in View::ALL {
+            ui.selectable_value(&mut settings.view, view, view.label());
+        }
+    });
+    ui.horizontal(|ui| {
+        ui.label("camera:");
+        ui.radio_value(&mut settings.camera_mode, CameraMode::Orbit, "orbit");
+        ui.radio_value(&mut settings.camera_mode, CameraMode::Fly, "fly");
+        if ui.button("reset (R)").clicked() {
+            actions.push(PanelAction::ResetCamera);
+        }
+    });
+    ui.small(
+        "drag: orbit/look · wheel: zoom · WASD/QE: fly · click: pick · arrows/PgUp/PgDn: nudge",
+    );
+}
+
+fn pacing_section(ui: &mut egui::Ui, settings: &mut PanelSettings, actions: &mut Vec<PanelAction>) {
+    ui.heading("Pacing");
+    let before = settings.pacing;
+    let mut fixed = matches!(settings.pacing, PacingChoice::FixedFps(_));
+    ui.horizontal(|ui| {
+        ui.radio_value(&mut fixed, false, "quality heuristic");
+        ui.radio_value(&mut fixed, true, "fixed frame rate");
+    });
+    settings.pacing = match (fixed, settings.pacing) {
+        (true, PacingChoice::Heuristic { .. }) => PacingChoice::FixedFps(10.0),
+        (false, PacingChoice::FixedFps(_)) => {
+            PacingChoice::Heuristic { q_min: 0.2, q_max: 0.5, i_min: 2.0, i_max: 4.0 }
+        }
+        (_, pacing) => pacing,
+    };
+    match &mut settings.pacing {
+        PacingChoice::Heuristic { q_min, q_max, i_min, i_max } => {
+            ui.add(egui::Slider::new(q_min, 0.0..=1.0).text("Q_min"));
+            ui.add(egui::Slider::new(q_max, 0.0..=1.0).text("Q_max"));
+            ui.add(egui::Slider::new(i_min, 0.1..=10.0).text("I_min"));
+            ui.add(egui::Slider::new(i_max, 0.1..=20.0).text("I_max"));
+            // Keep the bounds ordered so the heuristic stays meaningful.
+            *q_max = q_max.max(*q_min);
+            *i_max = i_max.max(*i_min);
+        }
+        PacingChoice::FixedFps(fps) => {
+            ui.add(egui::Slider::new(fps, 1.0..=120.0).logarithmic(true).text("frames/s"));
+        }
+    }
+    if settings.pacing != before {
+        actions.push(PanelAction::Pacing(settings.pacing));
+    }
+}
+
+fn selection_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<PanelAction>) {
+    ui.heading("Selection");
+    let Some(object) =
+        model.selected.and_then(|i| model.scene.objects.get(i as usize).map(|o| (i, o)))
+    else {
+        ui.label("click an object in the picture to select it");
+        return;
+    };
+    let (index, object) = object;
+    ui.horizontal(|ui| {
+        ui.strong(&object.name);
+        if ui.button("deselect").clicked() {
+            actions.push(PanelAction::Deselect);
+        }
+    });
+    let mut transform = object.transform;
+    ui.horizontal(|ui| {
+        ui.label("position");
+        vec3_drag(ui, &mut transform.translation, 0.01);
+    });
+    if transform != object.transform {
+        actions.push(PanelAction::Edit(SceneEdit::ObjectTransform { object: index, transform }));
+    }
+    let mut seen = Vec::new();
+    for &id in &object.materials {
+        if seen.contains(&id) {
+            continue;
+        }
+        seen.push(id);
+        let Some(material) = model.scene.materials.get(id as usize) else { continue };
+        let mut m = material.clone();
+        ui.collapsing(format!("material {}", m.name), |ui| {
+            egui::ComboBox::from_id_salt(("kind", id)).selected_text(kind_label(m.kind)).show_ui(
+                ui,
+                |ui| {
+                    for kind in [
+                        MaterialKind::Diffuse,
+                        MaterialKind::Glossy,
+                        MaterialKind::Conductor,
+                        MaterialKind::Dielectric,
+                    ] {
+                        ui.selectable_value(&mut m.kind, kind, kind_label(kind));
+                    }
+                },
+            );
+            ui.horizontal(|ui| {
+                ui.label("base colour");
+                colour_edit(ui, &mut m.base_color);
+            });
+            ui.add(egui::Slider::new(&mut m.roughness, 0.0..=1.0).text("roughness"));
+            if matches!(m.kind, MaterialKind::Dielectric | MaterialKind::Glossy) {
+                ui.add(egui::Slider::new(&mut m.ior, 1.0..=2.5).text("IOR"));
+            }
+            let (mut colour, mut strength) = split_power(m.emission);
+            ui.horizontal(|ui| {
+                ui.label("emission");
+                colour_edit(ui, &mut colour);
+            });
+            ui.add(egui::Slider::new(&mut strength, 0.0..=50.0).text("emission strength"));
+            m.emission = join_power(colour, strength);
+        });
+        if &m != material {
+            actions.push(PanelAction::Edit(SceneEdit::Material { id, material: m }));
+        }
+    }
+}
+
+fn lights_section(ui: &mut egui::Ui, scene: &SceneState, actions: &mut Vec<PanelAction>) {
+    ui.heading("Lights");
+    if scene.lights.is_empty() {
+        ui.label("no lights besides emissive surfaces (edit those as materials)");
+    }
+    for (index, light) in scene.lights.iter().enumerate() {
+        let mut l = *light;
+        ui.collapsing(format!("{} {index}", light_label(light)), |ui| light_editor(ui, &mut l));
+        if l != *light {
+            actions.push(PanelAction::Edit(SceneEdit::Light { index: index as u32, light: l }));
+        }
+    }
+}
+
+fn light_editor(ui: &mut egui::Ui, light: &mut Light) {
+    let power = match light {
+        Light::Point { position, intensity } => {
+            labelled_vec3(ui, "position", position, 0.01);
+            intensity
+        }
+        Light::Spot { position, direction, intensity, inner_deg, outer_deg } => {
+            labelled_vec3(ui, "position", position, 0.01);
+            labelled_vec3(ui, "direction", direction, 0.01);
+            ui.add(egui::Slider::new(inner_deg, 0.0..=90.0).text("inner °"));
+            ui.add(egui::Slider::new(outer_deg, 0.0..=90.0).text("outer °"));
+            *outer_deg = outer_deg.max(*inner_deg);
+            intensity
+        }
+        Light::Sun { direction, radiance, angular_radius_deg } => {
+            labelled_vec3(ui, "direction", direction, 0.01);
+            ui.add(egui::Slider::new(angular_radius_deg, 0.05..=10.0).text("radius °"));
+            radiance
+        }
+        Light::Quad { corner, radiance, .. } => {
+            labelled_vec3(ui, "corner", corner, 0.01);
+            radiance
+        }
+    };
+    let (mut colour, mut intensity) = split_power(*power);
+    ui.horizontal(|ui| {
+        ui.label("colour");
+        colour_edit(ui, &mut colour);
+    });
+    let max = (intensity * 4.0).max(10.0);
+    ui.add(egui::Slider::new(&mut intensity, 0.0..=max).text("intensity"));
+    *power = join_power(colour, intensity);
+}
+
+fn environment_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<PanelAction>) {
+    ui.heading("Environment");
+    let before = model.scene.environment.clone();
+    let mut env = before.clone();
+    let current = env
+        .as_ref()
+        .map_or("none".to_string(), |e| e.map.clone().unwrap_or_else(|| "constant colour".into()));
+    egui::ComboBox::from_id_salt("environment").selected_text(current).show_ui(ui, |ui| {
+        if ui.selectable_label(env.is_none(), "none").clicked() {
+            env = None;
+        }
+        let constant = env.as_ref().is_some_and(|e| e.map.is_none());
+        if ui.selectable_label(constant, "constant colour").clicked() {
+            env =
+                Some(Environment { map: None, ..env.clone().unwrap_or_else(default_environment) });
+        }
+        for map in model.environment_maps {
+            let chosen = env.as_ref().is_some_and(|e| e.map.as_ref() == Some(map));
+            if ui.selectable_label(chosen, map).clicked() {
+                env = Some(Environment {
+                    map: Some(map.clone()),
+                    ..env.clone().unwrap_or_else(default_environment)
+                });
+            }
+        }
+    });
+    if let Some(e) = env.as_mut() {
+        ui.horizontal(|ui| {
+            ui.label(if e.map.is_some() { "tint" } else { "colour" });
+            colour_edit(ui, &mut e.color);
+        });
+        ui.add(egui::Slider::new(&mut e.intensity, 0.0..=10.0).text("intensity"));
+        ui.add(egui::Slider::new(&mut e.rotation_deg, 0.0..=360.0).text("rotation °"));
+    }
+    if env != before {
+        actions.push(PanelAction::Edit(SceneEdit::Environment(env)));
+    }
+}
+
+fn record_section(
+    ui: &mut egui::Ui,
+    model: &PanelModel,
+    settings: &mut PanelSettings,
+    actions: &mut Vec<PanelAction>,
+) {
+    ui.heading("Recording and screenshots");
+    ui.checkbox(&mut settings.recording, format!("record edits ({} so far)", model.recorded));
+    ui.horizontal(|ui| {
+        if ui.button("save script").clicked() {
+            actions.push(PanelAction::SaveScript);
+        }
+        ui.radio_value(&mut settings.shot_format, ShotFormat::Png, "PNG");
+        ui.radio_value(&mut settings.shot_format, ShotFormat::Exr, "EXR");
+        if ui.button("screenshot (F12)").clicked() {
+            actions.push(PanelAction::Screenshot);
+        }
+    });
+    if !model.message.is_empty() {
+        ui.small(model.message);
+    }
+}
+
+fn default_environment() -> Environment {
+    Environment { map: None, color: Vec3::splat(0.5), intensity: 1.0, rotation_deg: 0.0 }
+}
+
+fn kind_label(kind: MaterialKind) -> &'static str {
+    match kind {
+        MaterialKind::Diffuse => "diffuse",
+        MaterialKind::Glossy => "glossy (plastic)",
+        MaterialKind::Conductor => "metal",
+        MaterialKind::Dielectric => "glass",
+    }
+}
+
+fn light_label(light: &Light) -> &'static str {
+    match light {
+        Light::Point { .. } => "point",
+        Light::Spot { .. } => "spot",
+        Light::Sun { .. } => "sun",
+        Light::Quad { .. } => "area",
+    }
+}
+
+fn vec3_drag(ui: &mut egui::Ui, v: &mut Vec3, speed: f32) {
+    ui.add(egui::DragValue::new(&mut v.x).speed(speed).prefix("x "));
+    ui.add(egui::DragValue::new(&mut v.y).speed(speed).prefix("y "));
+    ui.add(egui::DragValue::new(&mut v.z).speed(speed).prefix("z "));
+}
+
+fn labelled_vec3(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f32) {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        vec3_drag(ui, v, speed);
+    });
+}
+
+fn colour_edit(ui: &mut egui::Ui, c: &mut Vec3) {
+    let mut rgb = c.to_array();
+    ui.color_edit_button_rgb(&mut rgb);
+    *c = Vec3::from_array(rgb);
+}
