@@ -32,7 +32,7 @@ pub mod reconstruct;
 pub mod render;
 pub mod scene;
 pub mod shapes;
-pub mod worker;
 pub mod window;
+pub mod worker;
 
 pub use gridlight_actors as actors;

@@ -19,6 +19,7 @@
 //! - [`panel`], [`status`]: the egui side panel over plain data.
 //! - [`picture`]: pictures and the diagnostic views; [`layout`]: where the picture sits.
 //! - [`latest`]: the newest-only hand-off; [`record`]: edit recording; [`screenshot`].
+//! - [`session`]: the window on a running master (frame sink, edits, picking, scripts).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -41,6 +42,7 @@ pub mod panel;
 pub mod picture;
 pub mod record;
 pub mod screenshot;
+pub mod session;
 pub mod status;
 
 use edits::SceneEdit;
