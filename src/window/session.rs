@@ -373,6 +373,46 @@ impl Session for MasterSession {
     }
 }
 
+/// Starts a master whose frames go to a window and runs the window on this thread until
+/// it closes; closing it stops the master, then calls `on_shutdown` (e.g. to stop the
+/// demo's local workers). The entry point for the windowed `gridlight demo`/`master`.
+pub fn run_master_window(
+    options: super::WindowOptions,
+    config: gridlight_actors::master::MasterConfig,
+    state: SceneState,
+    assets: Arc<Assets>,
+    store: gridlight_actors::asset_store::AssetStore,
+    on_shutdown: Option<Box<dyn FnOnce()>>,
+) -> Result<(), super::WindowError> {
+    let script_path = options.shot_dir.join("gridlight-session.toml");
+    let pacing = match config.pacing {
+        gridlight_actors::wait_heuristic::Pacing::Heuristic(h) => PacingChoice::Heuristic {
+            q_min: h.q_min as f32,
+            q_max: h.q_max as f32,
+            i_min: h.i_min as f32,
+            i_max: h.i_max as f32,
+        },
+        gridlight_actors::wait_heuristic::Pacing::FixedFps(fps) => PacingChoice::FixedFps(fps),
+    };
+    super::run(options, move |proxy, frames| {
+        let scene: SharedScene = Arc::new(RwLock::new(None));
+        let view: SharedView = Arc::new(AtomicU8::new(0));
+        let sink = WindowSink::new(assets, Arc::clone(&scene), Arc::clone(&view), frames, proxy);
+        let handle = gridlight_actors::master::start(config, state.clone(), store, Box::new(sink))
+            .map_err(|e| format!("cannot start the master: {e}"))?;
+        tracing::info!(address = %handle.local_addr(), "master listening");
+        Ok(Box::new(MasterSession::new(
+            handle,
+            state,
+            pacing,
+            scene,
+            view,
+            script_path,
+            on_shutdown,
+        )))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
