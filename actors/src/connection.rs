@@ -180,6 +180,7 @@ impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
             }
             Err(ProtocolError::Io(e)) => {
                 tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer, cause = %e, "read failed");
+                self.counters.note_rejection("io");
                 self.failed = true;
                 ctx.stop();
             }
@@ -427,6 +428,7 @@ impl Connection {
     fn reject(&mut self, reason: String, ctx: &mut Context<Self>) {
         tracing::warn!(conn = self.id, worker = %self.name, peer = %self.peer, %reason, "connection rejected");
         Counters::add(&self.counters.connections_rejected, 1);
+        self.counters.note_rejection(crate::stats::rejection_kind(&reason));
         self.failed = true;
         self.send(MasterMsg::Rejected { reason });
         self.phase = Phase::Closing;

@@ -102,6 +102,8 @@ impl Handler<Accepted> for Listener {
         };
         if self.conns.len() >= self.max_connections {
             tracing::warn!(%peer, cap = self.max_connections, "connection refused: too many connections");
+            Counters::add(&self.counters.connections_rejected, 1);
+            self.counters.note_rejection("full");
             let reason = format!("the master is full ({} connections)", self.max_connections);
             actix::spawn(refuse(stream, reason));
             return;

@@ -4,8 +4,9 @@
 //! count bytes and workers, the assembler counts dropped results) and read by the
 //! display when it builds a frame's [`FrameStats`]; nothing else is shared.
 
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use serde::Serialize;
 
@@ -31,6 +32,9 @@ pub struct Counters {
     pub connections_rejected: AtomicU64,
     /// Panics contained at an actor boundary.
     pub panics_contained: AtomicU64,
+    /// Connections ended on an error, by kind ([`rejection_kind`], `"full"` for
+    /// refused at the cap, `"io"` for a broken stream); bounded: the kinds are fixed.
+    pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
 }
 
 impl Counters {
@@ -41,6 +45,40 @@ impl Counters {
     pub fn get(counter: &AtomicU64) -> u64 {
         counter.load(Ordering::Relaxed)
     }
+
+    /// Counts one connection ended on an error of this kind.
+    pub fn note_rejection(&self, kind: &'static str) {
+        *self
+            .rejected_by_kind
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .entry(kind)
+            .or_default() += 1;
+    }
+
+    /// Connections ended on an error so far, by kind.
+    pub fn rejections(&self) -> BTreeMap<&'static str, u64> {
+        self.rejected_by_kind.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+}
+
+/// The kind of a connection's rejection, from the reason it was sent (fault reports).
+pub fn rejection_kind(reason: &str) -> &'static str {
+    const KINDS: [(&str, &str); 12] = [
+        ("protocol version", "version"),
+        ("authentication", "auth"),
+        ("empty frame", "empty_frame"),
+        ("exceeds the maximum", "oversized_frame"),
+        ("bad frame", "bad_frame"),
+        ("not given to this worker", "unknown_result"),
+        ("pixels, the set has", "pixel_count"),
+        ("names state version", "state_version"),
+        ("sets, but there are only", "set_range"),
+        ("not in the manifest", "asset"),
+        ("no message from the worker", "timeout"),
+        ("unexpected", "phase"),
+    ];
+    KINDS.iter().find(|(needle, _)| reason.contains(needle)).map_or("other", |(_, k)| k)
 }
 
 /// Statistics of one shown frame; one JSON line each in `--stats` files.
@@ -70,4 +108,22 @@ pub struct FrameStats {
     pub shown: u64,
     /// Frames since the scene state last changed whose results are accumulated.
     pub accumulated_frames: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejections_are_counted_by_kind() {
+        assert_eq!(rejection_kind("bad frame: empty frame (length prefix 0)"), "empty_frame");
+        assert_eq!(rejection_kind("bad frame: undecodable message: x"), "bad_frame");
+        assert_eq!(rejection_kind("authentication failed: wrong shared secret"), "auth");
+        assert_eq!(rejection_kind("something new"), "other");
+        let c = Counters::default();
+        c.note_rejection("auth");
+        c.note_rejection("auth");
+        c.note_rejection("full");
+        assert_eq!(c.rejections().into_iter().collect::<Vec<_>>(), [("auth", 2), ("full", 1)]);
+    }
 }

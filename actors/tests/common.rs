@@ -107,6 +107,16 @@ impl Peer {
         Self { stream, codec: WorkerCodec::new(), buf: BytesMut::new() }
     }
 
+    /// This peer's own address (what the master's logs name).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.stream.local_addr().expect("local addr")
+    }
+
+    /// A second handle on the socket (to half-close it or write from another thread).
+    pub fn stream_clone(&self) -> TcpStream {
+        self.stream.try_clone().expect("clone socket")
+    }
+
     pub fn send(&mut self, msg: &WorkerMsg) {
         let frame = to_frame(msg).expect("encode");
         self.stream.write_all(&frame).expect("send");

@@ -12,6 +12,7 @@ use clap::{Parser, Subcommand};
 pub mod bench;
 pub mod eval;
 pub mod render;
+pub mod soak;
 
 /// Interactive path tracing on a desktop grid.
 #[derive(Debug, Parser)]
@@ -42,12 +43,15 @@ pub enum Command {
     Eval(eval::EvalCommand),
     /// Measure performance (JSON lines with `--json`).
     Bench(bench::Args),
+    /// Run a master and worker processes on loopback under random faults; print a JSON report.
+    Soak(soak::Args),
 }
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(args) => render::run(args, &cli.global),
+        Command::Soak(args) => soak::run(args, &cli.global),
         Command::Eval(cmd) => eval::run(cmd, &cli.global),
         Command::Bench(args) => bench::run(args, &cli.global),
     }

@@ -79,6 +79,11 @@ impl Checker {
         self.live = live;
     }
 
+    /// A new master numbers its frames from the start again.
+    pub fn master_restarted(&mut self) {
+        self.last_frame = None;
+    }
+
     /// Checks the gap so far (call now and then: a stopped display shows nothing).
     pub fn tick(&mut self, now: Instant) {
         let Some(start) = self.gap_start else { return };

@@ -8,8 +8,11 @@
 //! - [`rss`]: resident-set sampling from `/proc`.
 //! - [`harness`]: a master (in-process) and real worker processes on loopback, with
 //!   every fault of the list at hand.
+//! - [`soak`]: random faults for a bounded time (`gridlight soak`).
 
 pub mod curve;
+pub mod harness;
 pub mod invariants;
 pub mod proxy;
 pub mod rss;
+pub mod soak;
