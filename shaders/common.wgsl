@@ -8,12 +8,17 @@ struct Params {
     radius: i32,
     gauss_radius: i32,
     alpha: f32,
-    // Position threshold in scene units.
-    beta: f32,
+    // 1 / (1 - alpha).
+    inv_one_minus_alpha: f32,
+    // 1 / beta^2, beta in scene units.
+    inv_beta2: f32,
     // Exposure multiplier (2^stops).
     exposure: f32,
     // 1: the scene state changed, restart the running average.
     reset: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     // w = 1/(F_i - F_j) per history layer; 0 = unused layer.
     history_weight: vec4<f32>,
     // exp(-d^2 / 2 sigma^2) for d = 0..7.
@@ -25,9 +30,9 @@ struct Params {
 // Intended meaning of the paper's D (DESIGN.md): positive only when the normals agree and
 // the positions are close, 1 for a pixel against itself, 0 for pixels with no surface.
 fn discontinuity(ni: vec3<f32>, nj: vec3<f32>, zi: vec3<f32>, zj: vec3<f32>) -> f32 {
-    let orientation = max((dot(ni, nj) - params.alpha) / (1.0 - params.alpha), 0.0);
+    let orientation = max((dot(ni, nj) - params.alpha) * params.inv_one_minus_alpha, 0.0);
     let d = zi - zj;
-    let position = max(1.0 - dot(d, d) / (params.beta * params.beta), 0.0);
+    let position = max(1.0 - dot(d, d) * params.inv_beta2, 0.0);
     return orientation * position;
 }
 

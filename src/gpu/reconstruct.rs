@@ -22,7 +22,7 @@ use crate::reconstruct::{FrameInputs, Mode, ReconstructError, ReconstructParams,
 const F32X4: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DISPLAY: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 
-/// Mirror of `Params` in `shaders/common.wgsl` (std140-compatible: 80 bytes).
+/// Mirror of `Params` in `shaders/common.wgsl` (std140-compatible: 96 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct Uniforms {
@@ -31,13 +31,15 @@ pub struct Uniforms {
     pub radius: i32,
     pub gauss_radius: i32,
     pub alpha: f32,
-    pub beta: f32,
+    pub inv_one_minus_alpha: f32,
+    pub inv_beta2: f32,
     pub exposure: f32,
     pub reset: u32,
+    pub pad: [u32; 3],
     pub history_weight: [f32; 4],
     pub gauss: [f32; 8],
 }
-const _: () = assert!(std::mem::size_of::<Uniforms>() == 80);
+const _: () = assert!(std::mem::size_of::<Uniforms>() == 96);
 
 impl Uniforms {
     fn new(c: &PassConsts, reset: bool, history_weight: [f32; MAX_HISTORY as usize]) -> Self {
@@ -46,10 +48,12 @@ impl Uniforms {
             height: c.height,
             radius: c.radius,
             gauss_radius: c.gauss_radius,
-            alpha: c.alpha,
-            beta: c.beta,
+            alpha: c.d.alpha,
+            inv_one_minus_alpha: c.d.inv_one_minus_alpha,
+            inv_beta2: c.d.inv_beta2,
             exposure: crate::reconstruct::tonemap::exposure_scale(c.exposure),
             reset: reset as u32,
+            pad: [0; 3],
             history_weight,
             gauss: c.gauss,
         }

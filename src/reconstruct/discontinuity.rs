@@ -8,20 +8,65 @@
 //!
 //! `D = max(0, (n_i·n_j − α)/(1 − α)) × max(0, 1 − |z_i − z_j|²/β²)`
 //!
+//! evaluated as `max(0, (n_i·n_j − α)·(1/(1 − α))) × max(0, 1 − |z_i − z_j|²·(1/β²))`
+//!
 //! so that D = 1 for a pixel against itself. Pixels whose camera ray hit no surface have a
 //! zero normal and therefore D = 0 against everything. The WGSL passes
 //! (`shaders/common.wgsl`) evaluate exactly these expressions in the same order.
 
 use glam::Vec3;
 
-/// D between pixels (or frames of one pixel) with normals `n_i`, `n_j` and positions
-/// `z_i`, `z_j`; `beta` is in scene units (already multiplied by the scene scale).
+/// The thresholds of D in the form every implementation evaluates it (reciprocals
+/// precomputed once, so the inner loops multiply instead of dividing).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Thresholds {
+    pub alpha: f32,
+    /// 1 / (1 − α).
+    pub inv_one_minus_alpha: f32,
+    /// 1 / β², β in scene units (already multiplied by the scene scale).
+    pub inv_beta2: f32,
+}
+
+impl Thresholds {
+    pub fn new(alpha: f32, beta: f32) -> Self {
+        Self { alpha, inv_one_minus_alpha: 1.0 / (1.0 - alpha), inv_beta2: 1.0 / (beta * beta) }
+    }
+
+    /// The orientation factor from a dot product of normals.
+    #[inline(always)]
+    pub fn orientation(&self, dot: f32) -> f32 {
+        let o = (dot - self.alpha) * self.inv_one_minus_alpha;
+        if o > 0.0 {
+            o
+        } else {
+            0.0
+        }
+    }
+
+    /// The position factor from a squared distance.
+    #[inline(always)]
+    pub fn position(&self, dist2: f32) -> f32 {
+        let p = 1.0 - dist2 * self.inv_beta2;
+        if p > 0.0 {
+            p
+        } else {
+            0.0
+        }
+    }
+
+    /// D between pixels (or frames of one pixel) with normals `n_i`, `n_j` and positions
+    /// `z_i`, `z_j`.
+    #[inline(always)]
+    pub fn d(&self, n_i: Vec3, n_j: Vec3, z_i: Vec3, z_j: Vec3) -> f32 {
+        let dz = z_i - z_j;
+        self.orientation(n_i.dot(n_j)) * self.position(dz.dot(dz))
+    }
+}
+
+/// D with thresholds α and β (scene units); see [`Thresholds::d`].
 #[inline]
 pub fn discontinuity(n_i: Vec3, n_j: Vec3, z_i: Vec3, z_j: Vec3, alpha: f32, beta: f32) -> f32 {
-    let orientation = ((n_i.dot(n_j) - alpha) / (1.0 - alpha)).max(0.0);
-    let d = z_i - z_j;
-    let position = (1.0 - d.dot(d) / (beta * beta)).max(0.0);
-    orientation * position
+    Thresholds::new(alpha, beta).d(n_i, n_j, z_i, z_j)
 }
 
 /// Unnormalised Gaussian weight of an offset (the 1/(2πσ²) of the paper cancels out in

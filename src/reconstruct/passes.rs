@@ -7,9 +7,11 @@
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::discontinuity::{discontinuity, is_surface};
+use super::discontinuity::{is_surface, Thresholds};
 use super::params::{ReconstructParams, MAX_GAUSS_WIDTH, MAX_HISTORY};
+#[cfg(test)]
 use super::tonemap::to_rgba8;
+use super::tonemap::{exposure_scale, to_rgba8_fast};
 
 /// Entries of the 1-D Gaussian table (radius 0..=MAX_GAUSS_WIDTH/2).
 pub const GAUSS_TABLE: usize = (MAX_GAUSS_WIDTH as usize / 2) + 1;
@@ -20,9 +22,8 @@ pub const GAUSS_TABLE: usize = (MAX_GAUSS_WIDTH as usize / 2) + 1;
 pub struct PassConsts {
     pub width: u32,
     pub height: u32,
-    pub alpha: f32,
-    /// Position threshold in scene units.
-    pub beta: f32,
+    /// α and β (β in scene units) of the discontinuity function.
+    pub d: Thresholds,
     pub radius: i32,
     pub gauss_radius: i32,
     /// Exposure in stops.
@@ -41,8 +42,7 @@ impl PassConsts {
         Self {
             width,
             height,
-            alpha: params.alpha,
-            beta: params.beta * scene_scale,
+            d: Thresholds::new(params.alpha, params.beta * scene_scale),
             radius: params.radius as i32,
             gauss_radius: params.gauss_radius(),
             exposure: params.exposure,
@@ -93,14 +93,34 @@ pub fn accumulate(reset: bool, radiance: &[Vec3], mask: &[bool], accum: &mut [Ve
 /// Pixels that hit no surface have radiance 0 by convention.
 pub fn fill(accum: &[Vec4], guide: Guide, c: &PassConsts, out: &mut [Vec3]) {
     let (w, h) = (c.width as i32, c.height as i32);
+    let n = accum.len();
+    // Planar copies: each pixel's mean (the same division the GPU does per tap; 0 where
+    // nothing was calculated), whether it was calculated and whether it is a surface.
+    // Taps then need no branches: an uncalculated neighbour adds exactly 0 to each sum.
+    let mut mean = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    let mut calc = vec![0.0f32; n];
+    let mut surf_calc = vec![0.0f32; n];
+    for (i, a) in accum.iter().enumerate() {
+        if a.w > 0.0 {
+            let m = a.truncate() / a.w;
+            (mean[0][i], mean[1][i], mean[2][i]) = (m.x, m.y, m.z);
+            calc[i] = 1.0;
+            surf_calc[i] = if is_surface(guide.normal[i]) { 1.0 } else { 0.0 };
+        }
+    }
+    let planes = Planes::new(&[], guide);
+    let r = c.radius;
+    // Half-width of the disc on each row offset.
+    let half: Vec<i32> = (-r..=r)
+        .map(|dy| (0..=r).take_while(|dx| dx * dx + dy * dy <= r * r).count() as i32 - 1)
+        .collect();
     rows(out, c.width).for_each(|(y, row)| {
         let y = y as i32;
         for (x, o) in row.iter_mut().enumerate() {
             let x = x as i32;
             let i = (y * w + x) as usize;
-            let a = accum[i];
-            if a.w > 0.0 {
-                *o = a.truncate() / a.w;
+            if calc[i] > 0.0 {
+                *o = Vec3::new(mean[0][i], mean[1][i], mean[2][i]);
                 continue;
             }
             let (n_i, z_i) = (guide.normal[i], guide.position[i]);
@@ -108,40 +128,39 @@ pub fn fill(accum: &[Vec4], guide: Guide, c: &PassConsts, out: &mut [Vec3]) {
                 *o = Vec3::ZERO;
                 continue;
             }
-            let mut acc = Vec3::ZERO;
-            let mut wsum = 0.0f32;
-            let mut plain = Vec3::ZERO;
-            let mut plain_n = 0.0f32;
-            for dy in -c.radius..=c.radius {
+            let (mut a0, mut a1, mut a2, mut wsum) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            let (mut p0, mut p1, mut p2, mut plain_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            for dy in -r..=r {
                 let yy = y + dy;
                 if yy < 0 || yy >= h {
                     continue;
                 }
-                for dx in -c.radius..=c.radius {
-                    let xx = x + dx;
-                    if xx < 0 || xx >= w || dx * dx + dy * dy > c.radius * c.radius {
-                        continue;
-                    }
-                    let j = (yy * w + xx) as usize;
-                    let b = accum[j];
-                    if b.w <= 0.0 {
-                        continue;
-                    }
-                    let l_j = b.truncate() / b.w;
-                    let n_j = guide.normal[j];
-                    let d = discontinuity(n_i, n_j, z_i, guide.position[j], c.alpha, c.beta);
-                    acc += l_j * d;
+                let hw = half[(dy + r) as usize];
+                let (x0, x1) = ((x - hw).max(0), (x + hw).min(w - 1));
+                let base = (yy * w) as usize;
+                for j in base + x0 as usize..=base + x1 as usize {
+                    let dot =
+                        n_i.x * planes.n[0][j] + n_i.y * planes.n[1][j] + n_i.z * planes.n[2][j];
+                    let (e0, e1, e2) =
+                        (z_i.x - planes.z[0][j], z_i.y - planes.z[1][j], z_i.z - planes.z[2][j]);
+                    let d =
+                        c.d.orientation(dot) * c.d.position(e0 * e0 + e1 * e1 + e2 * e2) * calc[j];
+                    let (l0, l1, l2) = (mean[0][j], mean[1][j], mean[2][j]);
+                    a0 += l0 * d;
+                    a1 += l1 * d;
+                    a2 += l2 * d;
                     wsum += d;
-                    if is_surface(n_j) {
-                        plain += l_j;
-                        plain_n += 1.0;
-                    }
+                    let s = surf_calc[j];
+                    p0 += l0 * s;
+                    p1 += l1 * s;
+                    p2 += l2 * s;
+                    plain_n += s;
                 }
             }
             *o = if wsum > 0.0 {
-                acc / wsum
+                Vec3::new(a0, a1, a2) / wsum
             } else if plain_n > 0.0 {
-                plain / plain_n
+                Vec3::new(p0, p1, p2) / plain_n
             } else {
                 Vec3::ZERO
             };
@@ -165,19 +184,11 @@ pub fn temporal(
         for (x, o) in row.iter_mut().enumerate() {
             let i = base + x;
             let (n_i, z_i) = (guide.normal[i], guide.position[i]);
-            let d0 = discontinuity(n_i, n_i, z_i, z_i, c.alpha, c.beta);
+            let d0 = c.d.d(n_i, n_i, z_i, z_i);
             let mut acc = current[i] * d0;
             let mut wsum = d0;
             for p in past.iter().filter(|p| p.weight > 0.0) {
-                let d = discontinuity(
-                    n_i,
-                    p.guide.normal[i],
-                    z_i,
-                    p.guide.position[i],
-                    c.alpha,
-                    c.beta,
-                );
-                let dw = d * p.weight;
+                let dw = c.d.d(n_i, p.guide.normal[i], z_i, p.guide.position[i]) * p.weight;
                 acc += p.radiance[i] * dw;
                 wsum += dw;
             }
@@ -187,45 +198,143 @@ pub fn temporal(
 }
 
 /// Step 3: the edge-aware Gaussian (width 2·gauss_radius + 1) weighted by D.
+///
+/// Evaluated tap by tap over whole rows on planar copies of the inputs so that the inner
+/// loop vectorises (AVX2 where the CPU has it); every pixel still sums its taps in the
+/// same (dy, dx) order as the WGSL pass.
 pub fn gaussian(src: &[Vec3], guide: Guide, c: &PassConsts, out: &mut [Vec3]) {
-    let (w, h) = (c.width as i32, c.height as i32);
-    let r = c.gauss_radius;
+    let planes = Planes::new(src, guide);
+    let avx2 = avx2();
     rows(out, c.width).for_each(|(y, row)| {
-        let y = y as i32;
-        for (x, o) in row.iter_mut().enumerate() {
-            let x = x as i32;
-            let i = (y * w + x) as usize;
-            let (n_i, z_i) = (guide.normal[i], guide.position[i]);
-            let mut acc = Vec3::ZERO;
-            let mut wsum = 0.0f32;
-            for dy in -r..=r {
-                let yy = y + dy;
-                if yy < 0 || yy >= h {
-                    continue;
-                }
-                let gy = c.gauss[dy.unsigned_abs() as usize];
-                for dx in -r..=r {
-                    let xx = x + dx;
-                    if xx < 0 || xx >= w {
-                        continue;
-                    }
-                    let j = (yy * w + xx) as usize;
-                    let d = discontinuity(
-                        n_i,
-                        guide.normal[j],
-                        z_i,
-                        guide.position[j],
-                        c.alpha,
-                        c.beta,
-                    );
-                    let g = gy * c.gauss[dx.unsigned_abs() as usize] * d;
-                    acc += src[j] * g;
-                    wsum += g;
-                }
+        // SAFETY: `gaussian_row_avx2` is only called when the CPU supports AVX2.
+        unsafe {
+            if avx2 {
+                gaussian_row_avx2(&planes, c, y, row)
+            } else {
+                gaussian_row(&planes, c, y, row)
             }
-            *o = if wsum > 0.0 { acc / wsum } else { src[i] };
         }
     });
+}
+
+fn avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Planar (structure-of-arrays) copies of the radiance and guide.
+struct Planes {
+    src: [Vec<f32>; 3],
+    n: [Vec<f32>; 3],
+    z: [Vec<f32>; 3],
+}
+
+impl Planes {
+    /// Splits `src` (may be empty) and the guide into planes.
+    fn new(src: &[Vec3], guide: Guide) -> Self {
+        let split =
+            |v: &[Vec3]| -> [Vec<f32>; 3] { [0, 1, 2].map(|k| v.iter().map(|p| p[k]).collect()) };
+        Self { src: split(src), n: split(guide.normal), z: split(guide.position) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn gaussian_row_avx2(p: &Planes, c: &PassConsts, y: usize, out: &mut [Vec3]) {
+    gaussian_row(p, c, y, out)
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+unsafe fn gaussian_row_avx2(p: &Planes, c: &PassConsts, y: usize, out: &mut [Vec3]) {
+    gaussian_row(p, c, y, out)
+}
+
+#[inline(always)]
+fn sl(v: &[f32], s: usize, n: usize) -> &[f32] {
+    &v[s..s + n]
+}
+
+#[inline(always)]
+fn gaussian_row(p: &Planes, c: &PassConsts, y: usize, out: &mut [Vec3]) {
+    let (w, h) = (c.width as usize, c.height as i32);
+    let r = c.gauss_radius;
+    let mut acc = [vec![0.0f32; w], vec![0.0f32; w], vec![0.0f32; w]];
+    let mut wsum = vec![0.0f32; w];
+    let i0 = y * w;
+    for dy in -r..=r {
+        let yy = y as i32 + dy;
+        if yy < 0 || yy >= h {
+            continue;
+        }
+        let gy = c.gauss[dy.unsigned_abs() as usize];
+        for dx in -r..=r {
+            // Output pixels x whose tap x + dx lies inside the row.
+            let x0 = (-dx).max(0) as usize;
+            let x1 = (w as i32 - dx.max(0)) as usize;
+            if x1 <= x0 {
+                continue;
+            }
+            let g = gy * c.gauss[dx.unsigned_abs() as usize];
+            let j0 = (yy as usize * w) as isize + x0 as isize + dx as isize;
+            let (j0, n) = (j0 as usize, x1 - x0);
+            tap(
+                [sl(&p.n[0], i0 + x0, n), sl(&p.n[1], i0 + x0, n), sl(&p.n[2], i0 + x0, n)],
+                [sl(&p.z[0], i0 + x0, n), sl(&p.z[1], i0 + x0, n), sl(&p.z[2], i0 + x0, n)],
+                [sl(&p.n[0], j0, n), sl(&p.n[1], j0, n), sl(&p.n[2], j0, n)],
+                [sl(&p.z[0], j0, n), sl(&p.z[1], j0, n), sl(&p.z[2], j0, n)],
+                [sl(&p.src[0], j0, n), sl(&p.src[1], j0, n), sl(&p.src[2], j0, n)],
+                &mut acc,
+                &mut wsum,
+                x0,
+                g,
+                &c.d,
+            );
+        }
+    }
+    for (x, o) in out.iter_mut().enumerate() {
+        *o = if wsum[x] > 0.0 {
+            Vec3::new(acc[0][x], acc[1][x], acc[2][x]) / wsum[x]
+        } else {
+            Vec3::new(p.src[0][i0 + x], p.src[1][i0 + x], p.src[2][i0 + x])
+        };
+    }
+}
+
+/// One tap (fixed offset) for a run of output pixels starting at `x0`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn tap(
+    ni: [&[f32]; 3],
+    zi: [&[f32]; 3],
+    nj: [&[f32]; 3],
+    zj: [&[f32]; 3],
+    sj: [&[f32]; 3],
+    acc: &mut [Vec<f32>; 3],
+    wsum: &mut [f32],
+    x0: usize,
+    g: f32,
+    d: &Thresholds,
+) {
+    let n = ni[0].len();
+    let [a0, a1, a2] = acc;
+    let (a0, a1, a2, ws) =
+        (&mut a0[x0..x0 + n], &mut a1[x0..x0 + n], &mut a2[x0..x0 + n], &mut wsum[x0..x0 + n]);
+    for k in 0..n {
+        let dot = ni[0][k] * nj[0][k] + ni[1][k] * nj[1][k] + ni[2][k] * nj[2][k];
+        let (e0, e1, e2) = (zi[0][k] - zj[0][k], zi[1][k] - zj[1][k], zi[2][k] - zj[2][k]);
+        let dist2 = e0 * e0 + e1 * e1 + e2 * e2;
+        let wgt = g * (d.orientation(dot) * d.position(dist2));
+        a0[k] += sj[0][k] * wgt;
+        a1[k] += sj[1][k] * wgt;
+        a2[k] += sj[2][k] * wgt;
+        ws[k] += wgt;
+    }
 }
 
 /// Step 5: remodulates the albedo, adds the directly seen emission (linear colour) and
@@ -244,10 +353,11 @@ pub fn remodulate(
         .enumerate()
         .for_each(|(y, (crow, drow))| {
             let base = y * c.width as usize;
+            let scale = exposure_scale(c.exposure);
             for (x, (co, d)) in crow.iter_mut().zip(drow.iter_mut()).enumerate() {
                 let i = base + x;
                 *co = albedo[i] * radiance[i] + emission[i];
-                *d = to_rgba8(*co, c.exposure);
+                *d = to_rgba8_fast(*co, scale);
             }
         });
 }
