@@ -11,6 +11,7 @@ use anyhow::Context;
 
 use super::GlobalArgs;
 use crate::bench::trace::{bench_scene, TraceReport, TraceSettings};
+use crate::reconstruct::bench::BenchSettings as ReconBench;
 use crate::render::testscenes;
 use crate::scene::{self, AssetSearchPath};
 
@@ -26,6 +27,31 @@ pub struct Args {
 pub enum What {
     /// Single-thread path-tracing throughput (samples and rays per second per core).
     Trace(TraceArgs),
+    /// Milliseconds per 640×480 frame of the full reconstruction pipeline, CPU and GPU.
+    Reconstruct(ReconstructArgs),
+}
+
+/// Arguments of `gridlight bench reconstruct`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ReconstructArgs {
+    /// Print one JSON object (the only format).
+    #[arg(long)]
+    pub json: bool,
+    /// Timed frames per implementation; the median is reported.
+    #[arg(long, default_value_t = ReconBench::default().frames)]
+    pub frames: u32,
+    /// Fraction of pixels without a result in each frame.
+    #[arg(long, default_value_t = ReconBench::default().loss)]
+    pub loss: f32,
+    #[arg(long, default_value_t = ReconBench::default().width)]
+    pub width: u32,
+    #[arg(long, default_value_t = ReconBench::default().height)]
+    pub height: u32,
+    /// Skip the GPU (or the CPU) measurement.
+    #[arg(long)]
+    pub no_gpu: bool,
+    #[arg(long)]
+    pub no_cpu: bool,
 }
 
 /// Arguments of `gridlight bench trace`.
@@ -55,6 +81,20 @@ const DEFAULT_SCENES: [&str; 3] = ["cornell-box.toml", "bunny.toml", "sponza.tom
 pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
     match args.what {
         What::Trace(args) => trace(args, global),
+        What::Reconstruct(args) => {
+            let settings = ReconBench {
+                width: args.width,
+                height: args.height,
+                loss: args.loss,
+                frames: args.frames,
+                cpu: !args.no_cpu,
+                gpu: !args.no_gpu,
+                ..ReconBench::default()
+            };
+            let report = crate::reconstruct::bench::run(&settings)?;
+            println!("{}", serde_json::to_string(&report)?);
+            Ok(())
+        }
     }
 }
 

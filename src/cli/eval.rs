@@ -7,14 +7,18 @@
 //! interaction sequence (Figure 9) and a static view converging (Figure 8).
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use anyhow::Context;
 use serde_json::json;
 
 use super::GlobalArgs;
-use crate::eval::{loss, sequence, FrameSource, SyntheticSource};
+use crate::actors::state::Resolution;
+use crate::eval::{loss, sequence, FrameSource, RenderSource, SyntheticSource};
 use crate::image_io;
 use crate::reconstruct::ReconstructParams;
+use crate::render::testscenes;
+use crate::scene::{self, AssetSearchPath};
 
 /// The evaluations.
 #[derive(Debug, clap::Subcommand)]
@@ -26,16 +30,22 @@ pub enum EvalCommand {
 /// Arguments of `gridlight eval reconstruction`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ReconstructionArgs {
-    /// Scene file to render with the path tracer; without one, the analytic test scene
-    /// (smooth shading with synthetic per-frame noise) is used.
+    /// Scene file to render with the path tracer (default: the Cornell box).
     pub scene: Option<PathBuf>,
+    /// Use the analytic test scene (smooth shading with synthetic per-frame noise)
+    /// instead of path-traced frames.
+    #[arg(long, conflicts_with = "scene")]
+    pub synthetic: bool,
+    /// Samples per pixel of the converged image (gold standard of the sequences).
+    #[arg(long, default_value_t = 64)]
+    pub gold_spp: u32,
     /// Fractions of the frame's jobs that are lost.
     #[arg(long, value_delimiter = ',', default_values_t = vec![0.25, 0.5])]
     pub loss: Vec<f64>,
     /// Number of pixel sets S (jobs per frame).
     #[arg(long, default_value_t = 64)]
     pub sets: u32,
-    /// Image width and height (the scene's resolution when rendering a scene file).
+    /// Image width and height (override the scene's resolution).
     #[arg(long, default_value_t = 640)]
     pub width: u32,
     #[arg(long, default_value_t = 480)]
@@ -66,15 +76,37 @@ pub fn run(cmd: EvalCommand, global: &GlobalArgs) -> anyhow::Result<()> {
 
 fn source(
     args: &ReconstructionArgs,
-    _global: &GlobalArgs,
+    global: &GlobalArgs,
 ) -> anyhow::Result<(String, Box<dyn FrameSource>)> {
-    match &args.scene {
-        None => Ok(("synthetic".into(), Box::new(SyntheticSource::new(args.width, args.height)))),
-        Some(path) => anyhow::bail!(
-            "rendering {} needs the path tracer's frame source, which this build does not have yet; \
-             run without a scene for the analytic test scene",
-            path.display()
-        ),
+    if args.synthetic {
+        return Ok(("synthetic".into(), Box::new(SyntheticSource::new(args.width, args.height))));
+    }
+    let path = args.scene.clone().unwrap_or_else(|| scenes_dir().join(DEFAULT_SCENE));
+    let name = path
+        .file_stem()
+        .map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned());
+    let (assets, mut state) = if args.scene.is_none() && !path.is_file() {
+        testscenes::cornell_box(args.width, args.height)
+    } else {
+        let resolver = AssetSearchPath::from_env(&global.assets, Some(&path));
+        let loaded =
+            scene::load(&path, &resolver).with_context(|| format!("loading {}", path.display()))?;
+        (Arc::new(loaded.assets), loaded.state)
+    };
+    state.resolution = Resolution { width: args.width, height: args.height };
+    Ok((name, Box::new(RenderSource::new(assets, state, args.gold_spp)?)))
+}
+
+/// The scene evaluated when none is named.
+const DEFAULT_SCENE: &str = "cornell-box.toml";
+
+/// `scenes/` in the current directory, else the one of the source tree.
+fn scenes_dir() -> PathBuf {
+    let local = PathBuf::from("scenes");
+    if local.is_dir() {
+        local
+    } else {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
     }
 }
 

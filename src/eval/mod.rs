@@ -21,9 +21,11 @@ pub mod filter;
 pub mod flip;
 pub mod loss;
 pub mod metrics;
+pub mod render_source;
 pub mod sequence;
 pub mod source;
 
+pub use render_source::RenderSource;
 pub use source::{FrameSource, SyntheticSource};
 
 /// One complete frame: every pixel's demodulated radiance and the frame's G-buffer.

@@ -8,8 +8,11 @@
 use glam::Vec3;
 use gridlight_actors::state::SceneState;
 
+use rayon::prelude::*;
+
 use super::ReconstructError;
 use crate::assets::Assets;
+use crate::render::{primary_hit, PixelSample, RenderScene};
 
 /// Object id of pixels whose camera ray hit no object.
 pub const NO_OBJECT: u32 = u32::MAX;
@@ -47,6 +50,35 @@ impl GBuffer {
             object: vec![NO_OBJECT; n],
             scene_scale,
         }
+    }
+
+    /// The G-buffer planes of per-pixel samples (pixel order), e.g. from `render_pixels`
+    /// or `primary_hit`.
+    pub fn from_samples(
+        width: u32,
+        height: u32,
+        samples: &[PixelSample],
+        scene_scale: f32,
+    ) -> Self {
+        Self {
+            width,
+            height,
+            normal: samples.iter().map(|s| s.normal).collect(),
+            position: samples.iter().map(|s| s.position).collect(),
+            albedo: samples.iter().map(|s| s.albedo).collect(),
+            emission: samples.iter().map(|s| s.emission).collect(),
+            object: samples.iter().map(|s| s.object).collect(),
+            scene_scale,
+        }
+    }
+
+    /// The CPU G-buffer of a scene state: one primary ray through each pixel centre
+    /// (`render::primary_hit`), rows in parallel.
+    pub fn from_scene(scene: &RenderScene, assets: &Assets) -> Self {
+        let res = scene.state().resolution;
+        let samples: Vec<PixelSample> =
+            (0..res.pixels() as u32).into_par_iter().map(|p| primary_hit(scene, p)).collect();
+        Self::from_samples(res.width, res.height, &samples, scene_scale(scene.state(), assets))
     }
 
     /// Number of pixels.
