@@ -1,13 +1,31 @@
 //! `gridlight render`: renders one scene file to an image on all local cores.
 //!
-//! This is also how gold-standard images are made. The output format follows the file
+//! This is also how gold-standard images are made. One std thread per core pulls blocks of
+//! pixels and renders all samples of a block before taking the next; each sample is one
+//! `render_pixels` call with one sample per pixel and the sample number as the frame, so
+//! the image does not depend on the thread count and the colour `albedo * radiance +
+//! emission` is exact per sample (averaging demodulated radiance over samples whose primary
+//! hits differ would not be). Colours accumulate in f64. The output format follows the
 //! extension: `.png` is tonemapped sRGB, `.exr` is linear radiance.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
-use anyhow::bail;
+use anyhow::{bail, Context};
+use glam::{DVec3, Vec3};
+use indicatif::{ProgressBar, ProgressStyle};
 
 use super::GlobalArgs;
+use crate::image_io::{self, ImageFormat};
+use crate::render::{render_pixels, PixelSample, RenderScene};
+use crate::scene::{self, AssetSearchPath};
+
+/// Samples per pixel when `--spp` is not given.
+pub const DEFAULT_SPP: u32 = 64;
+/// Pixels per block handed to a render thread.
+pub const BLOCK_PIXELS: usize = 256;
 
 /// Arguments of `gridlight render`.
 #[derive(Debug, Clone, clap::Args)]
@@ -23,13 +41,119 @@ pub struct Args {
     /// Render threads (default: one per local core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Exposure in stops applied before tonemapping (PNG only).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub exposure: f32,
+    /// Hide the progress bar.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
-/// Samples per pixel when `--spp` is not given.
-pub const DEFAULT_SPP: u32 = 64;
-
 /// Runs `gridlight render`.
-pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
-    // Wired to the scene loader and the path tracer as soon as both are on main.
-    bail!("`render {}`: the path tracer is not on main yet", args.scene.display())
+pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
+    // Check the cheap things before loading anything.
+    ImageFormat::from_path(&args.out)?;
+    if args.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let threads = match args.threads {
+        Some(0) => bail!("--threads must be at least 1"),
+        Some(t) => t,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let search = AssetSearchPath::from_env(&global.assets, Some(&args.scene));
+    let started = Instant::now();
+    let loaded = scene::load(&args.scene, &search)?;
+    let mut state = loaded.state;
+    state.render.spp = 1;
+    let render_scene = RenderScene::new(Arc::new(loaded.assets), &state)
+        .with_context(|| format!("cannot render `{}`", args.scene.display()))?;
+    tracing::info!(
+        scene = %args.scene.display(),
+        width = state.resolution.width,
+        height = state.resolution.height,
+        spp = args.spp,
+        threads,
+        load_s = started.elapsed().as_secs_f32(),
+        "rendering"
+    );
+    let progress = progress_bar(state.resolution.pixels() as u64 * args.spp as u64, args.quiet);
+    let started = Instant::now();
+    let pixels = render_image(&render_scene, args.spp, threads, &progress);
+    progress.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let samples = state.resolution.pixels() as f64 * args.spp as f64;
+    image_io::write_image(
+        &args.out,
+        state.resolution.width,
+        state.resolution.height,
+        &pixels,
+        args.exposure,
+    )?;
+    tracing::info!(
+        out = %args.out.display(),
+        seconds,
+        samples_per_second = samples / seconds,
+        "written"
+    );
+    Ok(())
+}
+
+fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(total);
+    let style = ProgressStyle::with_template(
+        "{elapsed_precise} [{bar:40}] {percent}% {human_pos}/{human_len} samples, {per_sec}, ETA {eta}",
+    )
+    .expect("valid progress template")
+    .progress_chars("=> ");
+    bar.set_style(style);
+    bar
+}
+
+/// Renders every pixel of `scene` with `spp` samples on `threads` threads and returns the
+/// mean colour (`albedo * radiance + emission`) per pixel, row-major, top row first.
+/// `scene`'s state must have `render.spp == 1`; sample `s` is rendered as frame `s`.
+pub fn render_image(
+    scene: &RenderScene,
+    spp: u32,
+    threads: usize,
+    progress: &ProgressBar,
+) -> Vec<Vec3> {
+    let count = scene.state().resolution.pixels();
+    let blocks = count.div_ceil(BLOCK_PIXELS);
+    let next = AtomicUsize::new(0);
+    let image = Mutex::new(vec![Vec3::ZERO; count]);
+    std::thread::scope(|s| {
+        for _ in 0..threads.max(1) {
+            s.spawn(|| {
+                let mut samples: Vec<PixelSample> = Vec::with_capacity(BLOCK_PIXELS);
+                let mut sum = vec![DVec3::ZERO; BLOCK_PIXELS];
+                loop {
+                    let block = next.fetch_add(1, Ordering::Relaxed);
+                    if block >= blocks {
+                        break;
+                    }
+                    let start = block * BLOCK_PIXELS;
+                    let end = (start + BLOCK_PIXELS).min(count);
+                    let pixels: Vec<u32> = (start as u32..end as u32).collect();
+                    sum[..pixels.len()].fill(DVec3::ZERO);
+                    for sample in 0..spp {
+                        render_pixels(scene, sample as u64, &pixels, &mut samples);
+                        for (acc, p) in sum.iter_mut().zip(&samples) {
+                            *acc += (p.albedo * p.radiance + p.emission).as_dvec3();
+                        }
+                        progress.inc(pixels.len() as u64);
+                    }
+                    let mut image = image.lock().unwrap_or_else(|e| e.into_inner());
+                    for (dst, acc) in image[start..end].iter_mut().zip(&sum) {
+                        *dst = (*acc / spp as f64).as_vec3();
+                    }
+                }
+            });
+        }
+    });
+    image.into_inner().unwrap_or_else(|e| e.into_inner())
 }

@@ -1,0 +1,89 @@
+//! `gridlight render` end to end on a small Cornell box: writes PNG and EXR of the scene's
+//! size, rejects a bad extension, and gives the same image on any number of threads.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+
+use gridlight::cli::render::render_image;
+use gridlight::render::RenderScene;
+use gridlight::scene::{self, AssetSearchPath};
+
+/// The Cornell box at `width`×`height`, written into `dir`.
+fn small_cornell(dir: &Path, width: u32, height: u32) -> PathBuf {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(repo.join("scenes/cornell-box.toml")).expect("scene");
+    let text = text
+        .replace("width = 640", &format!("width = {width}"))
+        .replace("height = 480", &format!("height = {height}"));
+    let path = dir.join("small.toml");
+    std::fs::write(&path, text).expect("write scene");
+    path
+}
+
+fn gridlight(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_gridlight"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run gridlight")
+}
+
+#[test]
+fn renders_png_and_exr_of_the_scene_size() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = small_cornell(dir.path(), 32, 24);
+    let scene = scene.to_str().expect("utf-8 path");
+    for name in ["c.png", "c.exr"] {
+        let out = dir.path().join(name);
+        let run = gridlight(&[
+            "render",
+            scene,
+            "--spp",
+            "2",
+            "--quiet",
+            "--out",
+            out.to_str().expect("utf-8"),
+        ]);
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let image = image::open(&out).expect("readable image").to_rgb32f();
+        assert_eq!(image.dimensions(), (32, 24));
+        // The light is visible near the top centre and the room is lit.
+        let mean: f32 =
+            image.pixels().map(|p| p[0] + p[1] + p[2]).sum::<f32>() / (32.0 * 24.0 * 3.0);
+        assert!(mean > 0.05, "{name}: image too dark ({mean})");
+    }
+}
+
+#[test]
+fn bad_output_extension_is_a_clear_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = small_cornell(dir.path(), 8, 8);
+    let out = dir.path().join("c.jpg");
+    let run = gridlight(&[
+        "render",
+        scene.to_str().expect("utf-8"),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("c.jpg") && stderr.contains(".png or .exr"), "{stderr}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn image_does_not_depend_on_the_thread_count() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = small_cornell(dir.path(), 24, 16);
+    let loaded = scene::load(&path, &AssetSearchPath::from_dirs(vec![])).expect("scene loads");
+    let mut state = loaded.state;
+    state.render.spp = 1;
+    let render = RenderScene::new(Arc::new(loaded.assets), &state).expect("renderable");
+    let hidden = indicatif::ProgressBar::hidden();
+    let one = render_image(&render, 3, 1, &hidden);
+    let three = render_image(&render, 3, 3, &hidden);
+    assert_eq!(one.len(), 24 * 16);
+    assert_eq!(one, three);
+    assert!(one.iter().any(|p| p.max_element() > 0.0));
+}
