@@ -8,13 +8,15 @@
 //! - [`image_io`]: tonemapping and writing PNG/EXR images.
 //! - [`cli`]: the command line (clap), one module per subcommand.
 //! - [`children`]: child processes killed with their parent (the demo's workers).
+//! - [`headless`]: the headless frame sink (G-buffer, PNG frames, statistics).
+//! - [`master_cmd`]: running a master from a scene file (`master` and `demo` commands).
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
 //! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
 //! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
 //! - [`faults`]: fault injection: TCP proxy, invariant checks, worker harness, RSS.
 //! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
 //! - [`render`]: the path tracer (BVHs, materials, lights, the per-pixel kernel).
-//! - [`bench`]: benchmarks behind `gridlight bench` (kernel throughput).
+//! - [`bench`]: benchmarks behind `gridlight bench` (kernel and master throughput).
 //! - [`window`]: the interactive window (winit + wgpu + egui) with live scene editing.
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
@@ -27,7 +29,9 @@ pub mod cli;
 pub mod eval;
 pub mod faults;
 pub mod gpu;
+pub mod headless;
 pub mod image_io;
+pub mod master_cmd;
 pub mod reconstruct;
 pub mod render;
 pub mod scene;

@@ -27,6 +27,8 @@ pub struct Args {
 pub enum What {
     /// Single-thread path-tracing throughput (samples and rays per second per core).
     Trace(TraceArgs),
+    /// The master alone: null-render workers on loopback, 640×480, S = 64.
+    Master(super::bench_master::MasterArgs),
     /// Milliseconds per 640×480 frame of the full reconstruction pipeline, CPU and GPU.
     Reconstruct(ReconstructArgs),
 }
@@ -95,6 +97,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             println!("{}", serde_json::to_string(&report)?);
             Ok(())
         }
+        What::Master(args) => super::bench_master::run(args, global),
     }
 }
 

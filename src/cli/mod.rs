@@ -10,9 +10,13 @@ use std::path::PathBuf;
 use clap::{Parser, Subcommand};
 
 pub mod bench;
+pub mod bench_master;
+pub mod demo;
 pub mod eval;
+pub mod master;
 pub mod render;
 pub mod soak;
+pub mod worker;
 
 /// Interactive path tracing on a desktop grid.
 #[derive(Debug, Parser)]
@@ -45,6 +49,12 @@ pub enum Command {
     Bench(bench::Args),
     /// Run a master and worker processes on loopback under random faults; print a JSON report.
     Soak(soak::Args),
+    /// Serve a scene to workers and show (write) the frames they render.
+    Master(master::Args),
+    /// Render jobs for a master; every thread is one independent worker.
+    Worker(worker::Args),
+    /// A master plus one local worker process per core, on the Cornell box by default.
+    Demo(demo::Args),
 }
 
 /// Runs the parsed command line.
@@ -54,6 +64,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Soak(args) => soak::run(args, &cli.global),
         Command::Eval(cmd) => eval::run(cmd, &cli.global),
         Command::Bench(args) => bench::run(args, &cli.global),
+        Command::Master(args) => master::run(args, &cli.global),
+        Command::Worker(args) => worker::run(args, &cli.global),
+        Command::Demo(args) => demo::run(args, &cli.global),
     }
 }
 

@@ -12,10 +12,12 @@
 //! - [`session`]: one connection's protocol phases.
 //! - [`render`]: the render thread (path tracer or null renderer).
 //! - [`shared`]: what the connections of a process share.
+//! - [`resolver`]: loading a scene's assets from the cache.
 
 pub mod backoff;
 pub mod cache;
 pub mod render;
+pub mod resolver;
 pub mod session;
 pub mod shared;
 

@@ -19,10 +19,12 @@ use gridlight_actors::packing::encode_rgb9e5;
 use gridlight_actors::protocol::{FrameNo, JobResult, PackedRadiance, SetNo, SetsConfig};
 use gridlight_actors::state::SceneState;
 use tokio::sync::mpsc;
-use tracing::error;
+use tracing::{debug, error};
 
+use super::cache::CacheView;
 use super::shared::Shared;
 use super::WorkerError;
+use crate::render::{render_pixels, PixelSample, RenderScene};
 
 /// Radiance the null renderer returns for every pixel of `frame`: grey, and different
 /// for consecutive frames so that tests can tell which frame a pixel came from. Each
@@ -34,6 +36,8 @@ pub fn null_radiance(frame: FrameNo) -> Vec3 {
 /// Which renderer a worker runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RendererKind {
+    /// The path tracer (`crate::render`).
+    PathTracer,
     /// Constant radiance ([`null_radiance`]) for benchmarking the master; `delay_ms`
     /// simulates render time for fault-injection tests (0 in benchmarks).
     Null { delay_ms: u32 },
@@ -58,12 +62,13 @@ impl RenderThread {
     pub fn spawn(
         name: &str,
         kind: RendererKind,
+        view: Option<CacheView>,
         shared: Arc<Shared>,
         sets: SetsConfig,
         results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
     ) -> Result<Self, WorkerError> {
         let (jobs, rx) = std_mpsc::channel::<RenderJob>();
-        let mut renderer = Renderer { kind, shared, sets };
+        let mut renderer = Renderer { kind, view, shared, sets, scene: None, samples: Vec::new() };
         std::thread::Builder::new()
             .name(format!("render {name}"))
             .spawn(move || {
@@ -91,8 +96,14 @@ impl RenderThread {
 /// What the render thread owns.
 struct Renderer {
     kind: RendererKind,
+    /// Where the scene's assets are (path tracer only).
+    view: Option<CacheView>,
     shared: Arc<Shared>,
     sets: SetsConfig,
+    /// Built on the first job, updated on each new state version.
+    scene: Option<RenderScene>,
+    /// Reused between jobs: no allocation per job once warm.
+    samples: Vec<PixelSample>,
 }
 
 impl Renderer {
@@ -115,6 +126,26 @@ impl Renderer {
                 }
                 vec![encode_rgb9e5(null_radiance(job.frame)); pixels.len()]
             }
+            RendererKind::PathTracer => {
+                self.update_scene(&job.state)?;
+                let scene = self
+                    .scene
+                    .as_ref()
+                    .ok_or_else(|| WorkerError::Render("no render scene".into()))?;
+                render_pixels(scene, job.frame, pixels, &mut self.samples);
+                // A NaN would be a renderer bug: refuse it here rather than send it.
+                match gridlight_actors::packing::pack(
+                    &self.samples.iter().map(|s| s.radiance).collect::<Vec<_>>(),
+                ) {
+                    Ok(PackedRadiance::Rgb9e5(v)) => v,
+                    Err(e) => {
+                        return Err(WorkerError::Render(format!(
+                            "frame {} set {}: {e}",
+                            job.frame, job.set
+                        )))
+                    }
+                }
+            }
         };
         Ok(JobResult {
             frame: job.frame,
@@ -123,5 +154,43 @@ impl Renderer {
             radiance: PackedRadiance::Rgb9e5(radiance),
             render_us: started.elapsed().as_micros() as u64,
         })
+    }
+
+    /// Brings the render scene to `state`'s version, building or updating it as needed.
+    fn update_scene(&mut self, state: &SceneState) -> Result<(), WorkerError> {
+        let stale = self.scene.as_ref().map(|s| s.state().version != state.version);
+        match stale {
+            None => {
+                let view = self
+                    .view
+                    .as_ref()
+                    .ok_or_else(|| WorkerError::Render("no asset view".into()))?;
+                let assets = self.shared.assets_for(view, state)?;
+                debug!(version = state.version, "building the render scene");
+                self.scene = Some(
+                    RenderScene::new(assets, state)
+                        .map_err(|e| WorkerError::Render(e.to_string()))?,
+                );
+            }
+            Some(true) => {
+                let scene = self
+                    .scene
+                    .as_mut()
+                    .ok_or_else(|| WorkerError::Render("no render scene".into()))?;
+                if let Err(err) = scene.set_state(state) {
+                    // New geometry or textures: load them and rebuild from scratch.
+                    debug!(version = state.version, cause = %err, "rebuilding the render scene");
+                    let view = self
+                        .view
+                        .as_ref()
+                        .ok_or_else(|| WorkerError::Render("no asset view".into()))?;
+                    let assets = self.shared.assets_for(view, state)?;
+                    *scene = RenderScene::new(assets, state)
+                        .map_err(|e| WorkerError::Render(e.to_string()))?;
+                }
+            }
+            Some(false) => {}
+        }
+        Ok(())
     }
 }

@@ -137,12 +137,18 @@ where
     };
     info!(worker = %config.name, worker_id, sets = sets.sets, assets = manifest.len(), "welcomed");
 
-    let _view = fetch_assets(&mut conn, shared, &manifest).await?;
+    let view = fetch_assets(&mut conn, shared, &manifest).await?;
     progress.welcomed = true;
 
     let (results_tx, mut results_rx) = mpsc::unbounded_channel();
-    let render =
-        RenderThread::spawn(&config.name, config.renderer, Arc::clone(shared), sets, results_tx)?;
+    let render = RenderThread::spawn(
+        &config.name,
+        config.renderer,
+        Some(view),
+        Arc::clone(shared),
+        sets,
+        results_tx,
+    )?;
     let mut states: BTreeMap<StateVersion, Arc<SceneState>> = BTreeMap::new();
     conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?;
 
@@ -173,7 +179,9 @@ where
             },
             result = results_rx.recv() => match result {
                 Some(Ok(result)) => {
+                    let (frame, set) = (result.frame, result.set);
                     conn.send(WorkerMsg::Result(result)).await?;
+                    debug!(frame, set, "result sent");
                     conn.send(WorkerMsg::Ready { credits: 1 }).await?;
                     progress.results_sent += 1;
                 }

@@ -7,13 +7,16 @@
 //! start-up time.
 
 use std::collections::HashMap;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::sets::{SetTable, SetsError};
-use gridlight_actors::state::Resolution;
+use gridlight_actors::state::{Resolution, SceneState};
 
-use super::cache::AssetCache;
+use super::cache::{AssetCache, CacheView};
+use super::WorkerError;
+use crate::assets::Assets;
 
 /// Key of a set table: width, height, sets, partition.
 type SetKey = (u32, u32, u32, u8);
@@ -24,6 +27,8 @@ pub struct Shared {
     /// Held while one connection fetches assets, so the others wait and find them cached.
     pub fetch_lock: tokio::sync::Mutex<()>,
     set_tables: Mutex<HashMap<SetKey, Arc<SetTable>>>,
+    /// Loaded assets by cache view directory.
+    assets: Mutex<HashMap<PathBuf, Arc<Assets>>>,
 }
 
 impl Shared {
@@ -33,6 +38,7 @@ impl Shared {
             cache,
             fetch_lock: tokio::sync::Mutex::new(()),
             set_tables: Mutex::new(HashMap::new()),
+            assets: Mutex::new(HashMap::new()),
         }
     }
 
@@ -51,5 +57,23 @@ impl Shared {
         let table = Arc::new(SetTable::new(res, sets)?);
         tables.insert(key, Arc::clone(&table));
         Ok(table)
+    }
+
+    /// Assets with everything `state` needs, loaded from `view` (once per view, and again
+    /// only when a state names something not loaded yet).
+    pub fn assets_for(
+        &self,
+        view: &CacheView,
+        state: &SceneState,
+    ) -> Result<Arc<Assets>, WorkerError> {
+        let mut loaded = self.assets.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(assets) = loaded.get(view.dir()) {
+            if super::resolver::assets_cover(assets, state) {
+                return Ok(Arc::clone(assets));
+            }
+        }
+        let assets = Arc::new(super::resolver::load_assets(view, state)?);
+        loaded.insert(view.dir().to_path_buf(), Arc::clone(&assets));
+        Ok(assets)
     }
 }

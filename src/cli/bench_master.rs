@@ -1,0 +1,34 @@
+//! `gridlight bench master`: the master alone, with null-render workers on loopback.
+
+use super::GlobalArgs;
+use crate::bench::master::{self as master_bench, BenchOptions, DEFAULT_CONNECTIONS};
+
+/// Arguments of `gridlight bench master`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct MasterArgs {
+    /// Print JSON lines (the only output format; accepted for symmetry with `bench trace`).
+    #[arg(long)]
+    pub json: bool,
+    /// Connection counts to measure.
+    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_CONNECTIONS)]
+    pub connections: Vec<u32>,
+    /// Seconds measured per connection count (after a warm-up).
+    #[arg(long, default_value_t = 3.0)]
+    pub seconds: f64,
+    /// Jobs each worker connection holds (k).
+    #[arg(long, default_value_t = gridlight_actors::master::DEFAULT_PIPELINE)]
+    pub pipeline: u32,
+}
+
+/// Runs `gridlight bench master`: one JSON line per connection count.
+pub fn run(args: MasterArgs, _global: &GlobalArgs) -> anyhow::Result<()> {
+    let opts = BenchOptions {
+        connections: args.connections,
+        seconds: args.seconds,
+        pipeline: args.pipeline,
+    };
+    master_bench::run(&opts, |line| match serde_json::to_string(line) {
+        Ok(json) => println!("{json}"),
+        Err(err) => tracing::error!(cause = %err, "cannot serialise a result"),
+    })
+}

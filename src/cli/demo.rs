@@ -1,0 +1,140 @@
+//! `gridlight demo`: a master and one local worker process per core, on the Cornell box.
+//!
+//! The workers are child processes of this executable (`gridlight worker`), not
+//! threads, so they behave exactly like remote ones (own connection, handshake, asset
+//! fetch into a cache); they are killed when the demo ends, however it ends. Without a
+//! display (no `DISPLAY`/`WAYLAND_DISPLAY`) the demo is headless and writes frames and
+//! statistics for a bounded number of frames, so it terminates.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use anyhow::{bail, Context};
+use gridlight_actors::protocol::{Partition, SetsConfig};
+use tracing::info;
+
+use super::master::{PacingArgs, DEFAULT_SETS};
+use super::GlobalArgs;
+use crate::children::Children;
+use crate::headless::HeadlessOptions;
+use crate::master_cmd::{self, MasterOptions};
+
+/// The scene shown when none is named.
+pub const DEFAULT_SCENE: &str = "scenes/cornell-box.toml";
+/// Where a headless demo writes when `--out` is not given.
+pub const DEFAULT_OUT: &str = "gridlight-demo";
+/// Frames a headless demo shows before it ends.
+pub const DEFAULT_FRAMES: u64 = 30;
+
+/// Arguments of `gridlight demo`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// The scene file (default: the Cornell box).
+    pub scene: Option<PathBuf>,
+    /// Local worker processes (default: one per core).
+    #[arg(long)]
+    pub workers: Option<usize>,
+    /// Frames to show before stopping.
+    #[arg(long, default_value_t = DEFAULT_FRAMES)]
+    pub frames: u64,
+    /// Output directory for frames, `stats.jsonl` and `summary.json`.
+    #[arg(long, default_value = DEFAULT_OUT)]
+    pub out: PathBuf,
+    /// Pixel sets per frame.
+    #[arg(long, default_value_t = DEFAULT_SETS)]
+    pub sets: u32,
+    #[command(flatten)]
+    pub pacing: PacingArgs,
+}
+
+/// True when a window could be opened (an X11 or Wayland display is set).
+pub fn has_display() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+}
+
+/// Runs `gridlight demo`.
+pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
+    let scene = args.scene.clone().unwrap_or_else(|| PathBuf::from(DEFAULT_SCENE));
+    if !scene.is_file() {
+        bail!(
+            "scene file {} not found (run the demo from the repository root or name a scene)",
+            scene.display()
+        );
+    }
+    if has_display() {
+        info!("a display is available, but the window is not built yet: running headless");
+    }
+    let workers = args
+        .workers
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let exe = std::env::current_exe().context("finding the gridlight executable")?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    // Only this machine's workers may join: a fresh random secret, shared through a file.
+    let secret: [u8; 32] = rand::random();
+    let secret_hex = hex::encode(secret).into_bytes();
+    let secret_file = args.out.join(".demo-secret");
+    write_private(&secret_file, &secret_hex)?;
+
+    let opts = MasterOptions {
+        scene,
+        asset_dirs: global.assets.clone(),
+        listen: SocketAddr::from(([127, 0, 0, 1], 0)),
+        sets: SetsConfig { sets: args.sets, partition: Partition::QuasiRandom },
+        pacing: args.pacing.pacing()?,
+        pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
+        secret: Some(secret_hex),
+        script: None,
+        frames: Some(args.frames),
+        headless: HeadlessOptions {
+            out_dir: Some(args.out.clone()),
+            stats: Some(args.out.join("stats.jsonl")),
+            verbose: true,
+            dump_current: false,
+        },
+    };
+    let mut children = Children::new();
+    let report = master_cmd::run(&opts, |addr| {
+        for i in 0..workers {
+            let mut cmd = Command::new(&exe);
+            cmd.args(["worker", "--threads", "1", "--master"])
+                .arg(addr.to_string())
+                .arg("--name")
+                .arg(format!("demo-{i}"))
+                .arg("--secret-file")
+                .arg(&secret_file)
+                .stdin(Stdio::null());
+            let pid = children.spawn(cmd).context("starting a worker process")?;
+            info!(pid, "worker process started");
+        }
+        Ok(())
+    });
+    children.kill_all();
+    let _ = std::fs::remove_file(&secret_file);
+    let report = report?;
+    println!(
+        "demo: {} frames shown ({} skipped) by {workers} worker processes; frames and stats in {}",
+        report.shown,
+        report.skipped,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Writes a file only the current user can read.
+fn write_private(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .mode(0o600)
+        .open(path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    f.write_all(bytes).with_context(|| format!("writing {}", path.display()))
+}

@@ -1,0 +1,632 @@
+//! gridlight as separate processes on loopback: a real `gridlight master` and real
+//! `gridlight worker`s, faults injected with signals and hostile raw clients.
+//!
+//! The workers use the null renderer (hidden `--null-render`), whose radiance encodes the
+//! frame number (`worker::render::null_radiance`), and the master writes each frame's
+//! own results as EXR (hidden `--dump-current`), so a test can tell which frame every
+//! shown pixel came from. Images are tiny and frames few: the suite runs on 2 cores.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use gridlight::worker::render::null_radiance;
+use gridlight_actors::codec::{to_frame, WorkerCodec};
+use gridlight_actors::protocol::{
+    JobResult, MasterMsg, PackedRadiance, WorkerMsg, PROTOCOL_VERSION,
+};
+use serde_json::Value;
+use tokio_util::codec::Decoder;
+
+const EXE: &str = env!("CARGO_BIN_EXE_gridlight");
+/// Sets per frame in these tests; 64×48 pixels split into 16 sets of 192.
+const SETS: u32 = 16;
+const WIDTH: u32 = 64;
+const HEIGHT: u32 = 48;
+/// Upper bound on any wait; tests end far sooner when things work.
+const PATIENCE: Duration = Duration::from_secs(60);
+
+const SCENE: &str = r#"
+[camera]
+position = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+vfov = 40.0
+
+[resolution]
+width = 64
+height = 48
+"#;
+
+/// A child process whose stdout/stderr are collected in the background; killed on drop.
+struct Proc {
+    child: Child,
+    stdout: Arc<Mutex<String>>,
+    stderr: Arc<Mutex<String>>,
+}
+
+impl Proc {
+    fn spawn(args: &[&str], env: &[(&str, &str)]) -> Proc {
+        let mut cmd = Command::new(EXE);
+        cmd.args(args).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+        cmd.env("RUST_LOG", "info");
+        for (k, v) in env {
+            cmd.env(k, v);
+        }
+        let mut child = cmd.spawn().expect("gridlight starts");
+        let stdout = collect(child.stdout.take().unwrap());
+        let stderr = collect(child.stderr.take().unwrap());
+        Proc { child, stdout, stderr }
+    }
+
+    fn pid(&self) -> i32 {
+        self.child.id() as i32
+    }
+
+    fn signal(&self, sig: i32) {
+        assert_eq!(unsafe { libc::kill(self.pid(), sig) }, 0, "signal {sig} delivered");
+    }
+
+    fn stderr(&self) -> String {
+        strip_ansi(&self.stderr.lock().unwrap())
+    }
+
+    /// Waits for the process to exit; its status, or `None` after `timeout`.
+    fn wait(&mut self, timeout: Duration) -> Option<std::process::ExitStatus> {
+        let deadline = Instant::now() + timeout;
+        while Instant::now() < deadline {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return Some(status);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        None
+    }
+
+    /// Frames this worker sent results for, in order (from its debug log).
+    fn results_sent(&self) -> Vec<u64> {
+        self.stderr()
+            .lines()
+            .filter(|l| l.contains("result sent"))
+            .filter_map(|l| field(l, "frame"))
+            .collect()
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn collect(mut pipe: impl Read + Send + 'static) -> Arc<Mutex<String>> {
+    let buf = Arc::new(Mutex::new(String::new()));
+    let sink = Arc::clone(&buf);
+    std::thread::spawn(move || {
+        let mut reader = BufReader::new(&mut pipe);
+        let mut line = String::new();
+        while reader.read_line(&mut line).map(|n| n > 0).unwrap_or(false) {
+            sink.lock().unwrap().push_str(&line);
+            line.clear();
+        }
+    });
+    buf
+}
+
+fn strip_ansi(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut chars = s.chars();
+    while let Some(c) = chars.next() {
+        if c == '\x1b' {
+            for d in chars.by_ref() {
+                if d.is_ascii_alphabetic() {
+                    break;
+                }
+            }
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// The value of `name=N` in a log line.
+fn field(line: &str, name: &str) -> Option<u64> {
+    let at = line.find(&format!("{name}="))? + name.len() + 1;
+    line[at..].split(|c: char| !c.is_ascii_digit()).next()?.parse().ok()
+}
+
+/// Polls `f` until it returns `Some`, panicking with `what` after [`PATIENCE`].
+fn eventually<T>(what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + PATIENCE;
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(Instant::now() < deadline, "timed out waiting for: {what}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A master process and where it writes.
+struct Master {
+    proc: Proc,
+    addr: SocketAddr,
+    dir: PathBuf,
+}
+
+impl Master {
+    /// Starts `gridlight master` on the test scene; `extra` adds options.
+    fn start(dir: &Path, listen: &str, extra: &[&str]) -> Master {
+        std::fs::create_dir_all(dir).unwrap();
+        let scene = dir.join("scene.toml");
+        std::fs::write(&scene, SCENE).unwrap();
+        let out = dir.join("frames");
+        let stats = dir.join("stats.jsonl");
+        let sets = SETS.to_string();
+        let mut args = vec![
+            "master",
+            scene.to_str().unwrap(),
+            "--listen",
+            listen,
+            "--sets",
+            &sets,
+            "--headless",
+            "--out",
+            out.to_str().unwrap(),
+            "--stats",
+            stats.to_str().unwrap(),
+            "--dump-current",
+        ];
+        args.extend_from_slice(extra);
+        let proc = Proc::spawn(&args, &[]);
+        let addr = eventually("the master's listening line", || {
+            let out = proc.stdout.lock().unwrap().clone();
+            out.lines()
+                .find_map(|l| l.strip_prefix(gridlight::master_cmd::LISTENING_PREFIX))
+                .map(|a| a.trim().parse::<SocketAddr>().expect("a socket address"))
+        });
+        Master { proc, addr, dir: dir.to_path_buf() }
+    }
+
+    /// Every stats line written so far.
+    fn stats(&self) -> Vec<Value> {
+        let text = std::fs::read_to_string(self.dir.join("stats.jsonl")).unwrap_or_default();
+        // The last line may be half written.
+        text.lines().filter_map(|l| serde_json::from_str(l).ok()).collect()
+    }
+
+    fn shown(&self) -> usize {
+        self.stats().len()
+    }
+
+    /// Waits until `n` more frames than now were shown.
+    fn wait_more_frames(&self, n: usize) {
+        let start = self.shown();
+        eventually(&format!("{n} more frames"), || (self.shown() >= start + n).then_some(()));
+    }
+}
+
+fn worker(master: SocketAddr, cache: &Path, name: &str, delay_ms: u32, extra: &[&str]) -> Proc {
+    let addr = master.to_string();
+    let delay = delay_ms.to_string();
+    let mut args = vec![
+        "worker",
+        "--master",
+        &addr,
+        "--threads",
+        "1",
+        "--name",
+        name,
+        "--null-render",
+        "--null-render-delay-ms",
+        &delay,
+        "--cache-dir",
+        cache.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    Proc::spawn(&args, &[("RUST_LOG", "info,gridlight::worker=debug")])
+}
+
+fn u(v: &Value, key: &str) -> u64 {
+    v[key].as_u64().unwrap_or_else(|| panic!("stats key `{key}` missing or not a count: {v}"))
+}
+
+/// Checks every dumped frame: each pixel is either a hole (0) or the null radiance of
+/// that very frame, and the covered pixels are exactly the returned sets.
+fn check_frames_hold_only_their_own_results(master: &Master) -> usize {
+    let set_len = (WIDTH * HEIGHT / SETS) as usize;
+    let mut checked = 0;
+    for line in master.stats() {
+        let frame = u(&line, "frame");
+        let path = master.dir.join("frames").join(format!("frame-{frame:06}.current.exr"));
+        let Ok(img) = image::open(&path) else { continue };
+        let img = img.to_rgb32f();
+        let own = null_radiance(frame).x;
+        let mut covered = 0;
+        for p in img.pixels() {
+            if p.0 == [0.0; 3] {
+                continue;
+            }
+            assert_eq!(p.0, [own; 3], "frame {frame} shows a pixel from another frame");
+            covered += 1;
+        }
+        let jobs_back = u(&line, "jobs_back") as usize;
+        assert!(jobs_back <= SETS as usize, "frame {frame}: {jobs_back} results for {SETS} sets");
+        assert_eq!(covered, jobs_back * set_len, "frame {frame}: covered pixels vs results back");
+        checked += 1;
+    }
+    checked
+}
+
+#[test]
+fn two_worker_processes_fill_every_frame_with_that_frames_results_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let master = Master::start(dir.path(), "127.0.0.1:0", &["--frames", "12"]);
+    let cache = dir.path().join("cache");
+    let _a = worker(master.addr, &cache, "a", 2, &[]);
+    let _b = worker(master.addr, &cache, "b", 2, &[]);
+    let mut master = master;
+    let status = master.proc.wait(PATIENCE).expect("master stops after 12 frames");
+    assert!(status.success(), "master failed: {}", master.proc.stderr());
+    let stats = master.stats();
+    assert_eq!(stats.len(), 12);
+    for key in [
+        "frame",
+        "state_version",
+        "jobs_back",
+        "q",
+        "i",
+        "wait_ms",
+        "skipped",
+        "dropped_late",
+        "dropped_duplicate",
+        "dropped_unknown",
+        "workers",
+        "bytes_in",
+        "bytes_out",
+    ] {
+        assert!(stats[0].get(key).is_some(), "stats line lacks `{key}`: {}", stats[0]);
+    }
+    assert!(stats.iter().any(|s| u(s, "workers") == 2), "both workers took part");
+    assert!(stats.iter().all(|s| u(s, "dropped_duplicate") == 0));
+    assert_eq!(check_frames_hold_only_their_own_results(&master), 12);
+    assert!(dir.path().join("frames/summary.json").is_file(), "summary written at the end");
+}
+
+#[test]
+fn frames_go_on_when_a_worker_is_killed_mid_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let master = Master::start(dir.path(), "127.0.0.1:0", &[]);
+    let cache = dir.path().join("cache");
+    // The victim is slow, so it always holds jobs when it dies.
+    let victim = worker(master.addr, &cache, "victim", 150, &[]);
+    let _steady = worker(master.addr, &cache, "steady", 5, &[]);
+    eventually("the victim renders", || (!victim.results_sent().is_empty()).then_some(()));
+    master.wait_more_frames(2);
+    victim.signal(libc::SIGKILL);
+    let killed_at = master.shown();
+    master.wait_more_frames(8);
+    let stats = master.stats();
+    let after: Vec<_> = stats[killed_at + 2..].iter().collect();
+    assert!(after.iter().all(|s| u(s, "workers") == 1), "the dead worker is gone from the master");
+    assert!(stats.iter().all(|s| u(s, "dropped_duplicate") == 0), "nothing was handed out twice");
+    check_frames_hold_only_their_own_results(&master);
+}
+
+#[test]
+fn a_stopped_worker_has_its_late_result_dropped_and_then_gets_new_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let master = Master::start(dir.path(), "127.0.0.1:0", &[]);
+    let cache = dir.path().join("cache");
+    let sleeper = worker(master.addr, &cache, "sleeper", 40, &[]);
+    let _steady = worker(master.addr, &cache, "steady", 5, &[]);
+    eventually("the sleeper renders", || (sleeper.results_sent().len() >= 2).then_some(()));
+    sleeper.signal(libc::SIGSTOP);
+    // Its held jobs' frames are shown without it (well within the master's peer timeout).
+    master.wait_more_frames(4);
+    let before = sleeper.results_sent().len();
+    let late_before = master.stats().last().map_or(0, |s| u(s, "dropped_late"));
+    sleeper.signal(libc::SIGCONT);
+    eventually("late results dropped and counted", || {
+        master.stats().last().is_some_and(|s| u(s, "dropped_late") > late_before).then_some(())
+    });
+    // More results than the k = 2 it held: it was given new work after waking up.
+    eventually("the sleeper gets new work", || {
+        (sleeper.results_sent().len() > before + 2).then_some(())
+    });
+    check_frames_hold_only_their_own_results(&master);
+}
+
+#[test]
+fn a_worker_joining_mid_run_gets_work_within_a_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let master = Master::start(dir.path(), "127.0.0.1:0", &[]);
+    let cache = dir.path().join("cache");
+    let _first = worker(master.addr, &cache, "first", 30, &[]);
+    master.wait_more_frames(2);
+    let late = worker(master.addr, &cache, "late", 30, &[]);
+    let joined_at = eventually("the late worker is welcomed", || {
+        late.stderr().contains("welcomed").then(|| master.shown())
+    });
+    let first_result_at = eventually("the late worker's first result", || {
+        (!late.results_sent().is_empty()).then(|| master.shown())
+    });
+    assert!(
+        first_result_at <= joined_at + 1,
+        "the new worker waited {} frames for work",
+        first_result_at - joined_at
+    );
+}
+
+#[test]
+fn workers_reconnect_by_themselves_when_the_master_restarts() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = Master::start(&dir.path().join("m1"), "127.0.0.1:0", &[]);
+    let addr = first.addr;
+    let cache = dir.path().join("cache");
+    let w = worker(addr, &cache, "w", 5, &[]);
+    first.wait_more_frames(2);
+    first.proc.signal(libc::SIGKILL);
+    drop(first);
+    let second = Master::start(&dir.path().join("m2"), &addr.to_string(), &[]);
+    eventually("the worker serves the restarted master", || {
+        second.stats().iter().any(|s| u(s, "jobs_back") > 0).then_some(())
+    });
+    assert!(w.stderr().contains("reconnecting"), "the worker said it reconnects");
+}
+
+/// A raw TCP client speaking (or not) the protocol.
+struct Raw {
+    stream: TcpStream,
+    codec: WorkerCodec,
+    buf: bytes::BytesMut,
+}
+
+impl Raw {
+    fn connect(addr: SocketAddr) -> Raw {
+        let stream = TcpStream::connect(addr).unwrap();
+        stream.set_read_timeout(Some(Duration::from_secs(15))).unwrap();
+        Raw { stream, codec: WorkerCodec::default(), buf: bytes::BytesMut::new() }
+    }
+
+    fn send(&mut self, msg: &WorkerMsg) {
+        self.stream.write_all(&to_frame(msg).unwrap()).unwrap();
+    }
+
+    /// The next message from the master; `None` once it closed the connection.
+    fn recv(&mut self) -> Option<MasterMsg> {
+        loop {
+            if let Some(msg) =
+                self.codec.decode(&mut self.buf).expect("the master sends valid frames")
+            {
+                if msg == MasterMsg::Heartbeat {
+                    continue;
+                }
+                return Some(msg);
+            }
+            let mut chunk = [0u8; 4096];
+            match self.stream.read(&mut chunk) {
+                Ok(0) | Err(_) => return None,
+                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+            }
+        }
+    }
+
+    /// The rejection reason the master sends before closing.
+    fn rejection(&mut self) -> String {
+        match self.recv() {
+            Some(MasterMsg::Rejected { reason }) => {
+                assert_eq!(self.recv(), None, "closed after the rejection");
+                reason
+            }
+            other => panic!("expected Rejected, got {other:?}"),
+        }
+    }
+
+    /// Hello and Auth with `secret`; returns the Welcome.
+    fn join(&mut self, secret: &[u8]) -> MasterMsg {
+        self.send(&WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: "raw".into(), cores: 1 });
+        let Some(MasterMsg::Challenge { nonce, auth_required }) = self.recv() else {
+            panic!("no challenge")
+        };
+        assert!(auth_required);
+        self.send(&WorkerMsg::Auth { mac: Some(gridlight_actors::auth::mac(secret, &nonce)) });
+        self.recv().expect("an answer to Auth")
+    }
+}
+
+#[test]
+fn bad_peers_are_rejected_with_their_reason_and_the_master_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret_file = dir.path().join("secret");
+    std::fs::write(&secret_file, "open sesame\n").unwrap();
+    let master =
+        Master::start(dir.path(), "127.0.0.1:0", &["--secret-file", secret_file.to_str().unwrap()]);
+    let cache = dir.path().join("cache");
+    let good =
+        worker(master.addr, &cache, "good", 5, &["--secret-file", secret_file.to_str().unwrap()]);
+    master.wait_more_frames(2);
+
+    let mut reasons = BTreeMap::new();
+    let mut c = Raw::connect(master.addr);
+    c.send(&WorkerMsg::Hello { protocol: PROTOCOL_VERSION + 1, name: "future".into(), cores: 1 });
+    reasons.insert("version", c.rejection());
+
+    let mut c = Raw::connect(master.addr);
+    c.send(&WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: "intruder".into(), cores: 1 });
+    assert!(matches!(c.recv(), Some(MasterMsg::Challenge { auth_required: true, .. })));
+    c.send(&WorkerMsg::Auth { mac: Some([0; 32]) });
+    reasons.insert("secret", c.rejection());
+
+    let mut c = Raw::connect(master.addr);
+    c.stream.write_all(&[0, 0, 0, 6, 0xc1, 0xc1, 0xc1, 0xc1, 0xc1, 0xc1]).unwrap();
+    reasons.insert("garbage", c.rejection());
+
+    let mut c = Raw::connect(master.addr);
+    c.stream.write_all(&[0xff, 0xff, 0xff, 0xff]).unwrap();
+    reasons.insert("oversized", c.rejection());
+
+    let mut c = Raw::connect(master.addr);
+    assert!(matches!(c.join(b"open sesame"), MasterMsg::Welcome { .. }));
+    c.send(&WorkerMsg::Result(JobResult {
+        frame: 1,
+        set: 3,
+        state_version: 1,
+        radiance: PackedRadiance::Rgb9e5(vec![0; (WIDTH * HEIGHT / SETS) as usize]),
+        render_us: 1,
+    }));
+    reasons.insert("unasked result", c.rejection());
+
+    let expect = [
+        ("version", "version"),
+        ("secret", "authentication failed"),
+        ("garbage", "bad frame"),
+        ("oversized", "exceeds"),
+        ("unasked result", "not given"),
+    ];
+    for (case, needle) in expect {
+        let reason = &reasons[case];
+        assert!(reason.contains(needle), "{case}: reason `{reason}` does not say `{needle}`");
+    }
+    // The master and its real worker carry on.
+    let before = good.results_sent().len();
+    master.wait_more_frames(3);
+    assert!(good.results_sent().len() > before);
+    assert_eq!(master.stats().last().map(|s| u(s, "workers")), Some(1));
+}
+
+#[test]
+fn a_worker_with_the_wrong_secret_exits_non_zero_naming_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret_file = dir.path().join("secret");
+    std::fs::write(&secret_file, "right").unwrap();
+    let wrong_file = dir.path().join("wrong");
+    std::fs::write(&wrong_file, "wrong").unwrap();
+    let master =
+        Master::start(dir.path(), "127.0.0.1:0", &["--secret-file", secret_file.to_str().unwrap()]);
+    let mut w = worker(
+        master.addr,
+        &dir.path().join("cache"),
+        "w",
+        0,
+        &["--secret-file", wrong_file.to_str().unwrap()],
+    );
+    let status = w.wait(PATIENCE).expect("the worker gives up");
+    assert!(!status.success());
+    assert!(w.stderr().contains("wrong shared secret"), "{}", w.stderr());
+}
+
+#[test]
+fn ctrl_c_stops_master_and_worker_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut master = Master::start(dir.path(), "127.0.0.1:0", &[]);
+    assert!(
+        master.proc.stderr().contains("any host on the network may join"),
+        "an open master says so: {}",
+        master.proc.stderr()
+    );
+    let mut w = worker(master.addr, &dir.path().join("cache"), "w", 5, &[]);
+    master.wait_more_frames(2);
+    w.signal(libc::SIGINT);
+    let status = w.wait(PATIENCE).expect("the worker stops on Ctrl-C");
+    assert!(status.success(), "worker: {status:?}\n{}", w.stderr());
+    master.proc.signal(libc::SIGINT);
+    let status = master.proc.wait(PATIENCE).expect("the master stops on Ctrl-C");
+    assert!(status.success(), "master: {status:?}\n{}", master.proc.stderr());
+    assert!(dir.path().join("frames/summary.json").is_file(), "summary written on Ctrl-C");
+}
+
+/// Processes whose command line mentions `needle`.
+fn processes_mentioning(needle: &str) -> Vec<u32> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else { continue };
+        let Ok(cmdline) = std::fs::read(entry.path().join("cmdline")) else { continue };
+        if String::from_utf8_lossy(&cmdline).contains(needle) {
+            found.push(pid);
+        }
+    }
+    found
+}
+
+#[test]
+fn the_demo_renders_with_child_worker_processes_and_leaves_none_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("box.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[camera]
+position = [0.0, 0.0, 3.9]
+look_at = [0.0, 0.0, 0.0]
+vfov = 40.0
+
+[resolution]
+width = 48
+height = 32
+
+[render]
+max_depth = 3
+spp = 1
+
+[[materials]]
+name = "white"
+base_color = [0.8, 0.8, 0.8]
+
+[[materials]]
+name = "light"
+base_color = [0.8, 0.8, 0.8]
+emission = [10.0, 10.0, 10.0]
+
+[[objects]]
+name = "floor"
+shape = "quad"
+material = "white"
+transform = { translation = [0.0, -1.0, 0.0], scale = 2.0 }
+
+[[objects]]
+name = "light"
+shape = "quad"
+material = "light"
+transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scale = 0.5 }
+"#,
+    )
+    .unwrap();
+    let out = dir.path().join("demo-out");
+    let mut demo = Proc::spawn(
+        &[
+            "demo",
+            scene.to_str().unwrap(),
+            "--workers",
+            "2",
+            "--frames",
+            "3",
+            "--sets",
+            "8",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[("DISPLAY", ""), ("WAYLAND_DISPLAY", "")],
+    );
+    let status = demo.wait(PATIENCE).expect("the demo ends by itself");
+    assert!(status.success(), "demo failed: {}", demo.stderr());
+    let stats = std::fs::read_to_string(out.join("stats.jsonl")).unwrap();
+    let lines: Vec<Value> = stats.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 3);
+    assert!(lines.iter().all(|s| u(s, "jobs_back") > 0), "path-traced results arrived: {stats}");
+    for s in &lines {
+        let png = out.join(format!("frame-{:06}.png", u(s, "frame")));
+        let img = image::open(&png).unwrap_or_else(|e| panic!("{}: {e}", png.display())).to_rgb8();
+        assert_eq!(img.dimensions(), (48, 32));
+        assert!(img.pixels().any(|p| p.0 != [0, 0, 0]), "{} is black", png.display());
+    }
+    assert!(
+        processes_mentioning(out.to_str().unwrap()).is_empty(),
+        "worker processes outlived the demo"
+    );
+}
