@@ -1,101 +1,21 @@
 //! The headless frame sink: what the master shows when there is no window.
 //!
-//! For each shown frame it takes the G-buffer of the frame's scene state (computed on the
-//! CPU with `primary_hit`, once per state version), turns the frame's demodulated radiance
-//! into final colour with a [`FrameComposer`] (`albedo · radiance + emission`), writes it
-//! as `frame-NNNNNN.png` into the output directory, appends the frame's statistics as one
-//! JSON line to the stats file, and at the end writes a summary.
-//!
-//! Composition is a trait so that reconstruction plugs in here: the default composer,
-//! [`HolesVisible`], fills nothing, so pixels no result covered keep only their emission
-//! and the holes stay visible.
+//! Each shown frame is reconstructed by a [`Composer`] (G-buffer of the frame's scene
+//! state, the paper's fill/temporal/Gaussian/accumulation passes, remodulation, tonemap)
+//! and the chosen [`View`] is written as `frame-NNNNNN.png` into the output directory (the
+//! final view also as linear `frame-NNNNNN.exr` with `--exr`); the frame's statistics are
+//! appended as one JSON line to the stats file, and at the end a summary is written.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
-use glam::Vec3;
 use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
-use gridlight_actors::state::{SceneState, StateVersion};
-use rayon::prelude::*;
 use serde::Serialize;
 use tracing::info;
 
-use crate::assets::Assets;
-use crate::reconstruct::gbuffer::{scene_scale, GBuffer};
-use crate::render::{primary_hit, PixelSample, RenderError, RenderScene};
-
-/// Exposure of written PNGs, in stops.
-pub const PNG_EXPOSURE_STOPS: f32 = 0.0;
-
-/// Computes G-buffers on the CPU, reusing the render structures and the last state's.
-pub struct GBufferCache {
-    assets: Arc<Assets>,
-    scene: RenderScene,
-    current: Option<(StateVersion, Arc<GBuffer>)>,
-}
-
-impl GBufferCache {
-    /// Prepares G-buffers of scenes over `assets`, starting from `state`.
-    pub fn new(assets: Arc<Assets>, state: &SceneState) -> Result<Self, RenderError> {
-        Ok(Self { scene: RenderScene::new(Arc::clone(&assets), state)?, assets, current: None })
-    }
-
-    /// The G-buffer of `state`, computed (on all cores) only when its version is new.
-    pub fn get(&mut self, state: &SceneState) -> Result<Arc<GBuffer>, RenderError> {
-        if let Some((version, g)) = &self.current {
-            if *version == state.version {
-                return Ok(Arc::clone(g));
-            }
-        }
-        if self.scene.state().version != state.version {
-            self.scene.set_state(state)?;
-        }
-        let res = state.resolution;
-        let scene = &self.scene;
-        let hits: Vec<PixelSample> =
-            (0..res.pixels() as u32).into_par_iter().map(|p| primary_hit(scene, p)).collect();
-        let mut g = GBuffer::empty(res.width, res.height, scene_scale(state, &self.assets));
-        for (i, h) in hits.iter().enumerate() {
-            g.normal[i] = h.normal;
-            g.position[i] = h.position;
-            g.albedo[i] = h.albedo;
-            g.emission[i] = h.emission;
-            g.object[i] = h.object;
-        }
-        let g = Arc::new(g);
-        self.current = Some((state.version, Arc::clone(&g)));
-        Ok(g)
-    }
-}
-
-/// Turns a shown frame and its G-buffer into final linear colour (row-major).
-pub trait FrameComposer: Send {
-    fn compose(&mut self, frame: &ShownFrame, gbuffer: &GBuffer) -> Vec<Vec3>;
-}
-
-/// No reconstruction: accumulated radiance while the state is unchanged, this frame's
-/// results otherwise; pixels without any result get radiance 0 (holes stay visible).
-#[derive(Debug, Default, Clone, Copy)]
-pub struct HolesVisible;
-
-impl FrameComposer for HolesVisible {
-    fn compose(&mut self, frame: &ShownFrame, gbuffer: &GBuffer) -> Vec<Vec3> {
-        (0..gbuffer.len())
-            .map(|i| gbuffer.albedo[i] * demodulated(frame, i) + gbuffer.emission[i])
-            .collect()
-    }
-}
-
-/// The radiance a pixel shows without reconstruction: the mean of every result since
-/// the last state change, else zero.
-pub fn demodulated(frame: &ShownFrame, pixel: usize) -> Vec3 {
-    match frame.accumulated_frames.get(pixel) {
-        Some(&n) if n > 0 => frame.accumulated[pixel],
-        _ => Vec3::ZERO,
-    }
-}
+use crate::compose::Composer;
+use crate::view::View;
 
 /// What the sink writes, and where.
 #[derive(Debug, Clone, Default)]
@@ -106,6 +26,10 @@ pub struct HeadlessOptions {
     pub stats: Option<PathBuf>,
     /// Print a short progress line per shown frame (demo and master commands).
     pub verbose: bool,
+    /// The view written as PNG.
+    pub view: View,
+    /// Also write the final view's linear colour as `frame-NNNNNN.exr`.
+    pub exr: bool,
     /// Also write each frame's own results, unfiltered and linear, as
     /// `frame-NNNNNN.current.exr` (zero where no result of the frame arrived): lets the
     /// process tests check where every shown pixel came from.
@@ -131,8 +55,7 @@ pub struct Summary {
 
 /// The headless [`FrameSink`].
 pub struct HeadlessSink {
-    gbuffers: GBufferCache,
-    composer: Box<dyn FrameComposer>,
+    composer: Composer,
     options: HeadlessOptions,
     stats: Option<BufWriter<File>>,
     summary: Summary,
@@ -143,11 +66,7 @@ pub struct HeadlessSink {
 
 impl HeadlessSink {
     /// A sink writing as `options` say, composing with `composer`.
-    pub fn new(
-        gbuffers: GBufferCache,
-        composer: Box<dyn FrameComposer>,
-        options: HeadlessOptions,
-    ) -> std::io::Result<Self> {
+    pub fn new(composer: Composer, options: HeadlessOptions) -> std::io::Result<Self> {
         if let Some(dir) = &options.out_dir {
             std::fs::create_dir_all(dir)?;
         }
@@ -156,7 +75,6 @@ impl HeadlessSink {
             None => None,
         };
         Ok(Self {
-            gbuffers,
             composer,
             options,
             stats,
@@ -173,21 +91,20 @@ impl HeadlessSink {
     }
 
     fn write_frame(&mut self, frame: &ShownFrame) -> Result<(), String> {
-        let gbuffer = self.gbuffers.get(&frame.state).map_err(|e| format!("G-buffer: {e}"))?;
-        let colour = self.composer.compose(frame, &gbuffer);
+        let composed =
+            self.composer.compose(frame, self.options.view).map_err(|e| e.to_string())?;
         if let Some(dir) = &self.options.out_dir {
+            let (w, h) = (composed.width, composed.height);
             let path = frame_path(dir, frame.frame);
-            crate::image_io::write_png(
-                &path,
-                gbuffer.width,
-                gbuffer.height,
-                &colour,
-                PNG_EXPOSURE_STOPS,
-            )
-            .map_err(|e| e.to_string())?;
+            crate::image_io::write_png_rgba8(&path, w, h, &composed.rgba)
+                .map_err(|e| e.to_string())?;
+            if let (true, Some(linear)) = (self.options.exr, &composed.linear) {
+                let path = path.with_extension("exr");
+                crate::image_io::write_exr(&path, w, h, linear).map_err(|e| e.to_string())?;
+            }
             if self.options.dump_current {
                 let path = dir.join(format!("frame-{:06}.current.exr", frame.frame));
-                crate::image_io::write_exr(&path, gbuffer.width, gbuffer.height, &frame.current)
+                crate::image_io::write_exr(&path, w, h, &frame.current)
                     .map_err(|e| e.to_string())?;
             }
         }
@@ -255,62 +172,51 @@ pub fn frame_path(dir: &Path, frame: u64) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::assets::Assets;
+    use crate::reconstruct::{Backend, ReconstructParams};
+    use glam::Vec3;
     use gridlight_actors::master::FrameStats;
-
-    fn frame(accumulated: Vec<Vec3>, counts: Vec<u32>) -> ShownFrame {
-        let n = counts.len();
-        ShownFrame {
-            frame: 7,
-            state: Arc::new(crate::bench::master::bench_state()),
-            current: accumulated.clone(),
-            current_mask: counts.iter().map(|c| *c > 0).collect(),
-            accumulated,
-            accumulated_frames: counts,
-            stats: FrameStats {
-                frame: 7,
-                q: 0.5,
-                jobs_back: n as u32 / 2,
-                ..FrameStats::default()
-            },
-        }
-    }
+    use std::sync::Arc;
 
     #[test]
-    fn covered_pixels_are_remodulated_and_holes_keep_only_their_emission() {
-        let mut g = GBuffer::empty(2, 1, 1.0);
-        g.albedo = vec![Vec3::new(0.5, 0.25, 1.0), Vec3::splat(0.5)];
-        g.emission = vec![Vec3::splat(0.1), Vec3::splat(2.0)];
-        let f = frame(vec![Vec3::splat(2.0), Vec3::splat(9.0)], vec![1, 0]);
-        let colour = HolesVisible.compose(&f, &g);
-        assert_eq!(colour[0], Vec3::new(1.1, 0.6, 2.1));
-        assert_eq!(colour[1], Vec3::splat(2.0), "a hole shows its emission only");
-    }
-
-    #[test]
-    fn stats_lines_and_the_summary_follow_the_shown_frames() {
+    fn frames_stats_lines_and_the_summary_follow_the_shown_frames() {
         let dir = tempfile::tempdir().unwrap();
-        let state = crate::bench::master::bench_state();
-        let mut small = state.clone();
-        small.resolution = gridlight_actors::state::Resolution { width: 2, height: 1 };
-        let gbuffers = GBufferCache::new(Arc::new(Assets::default()), &small).unwrap();
+        let mut small = crate::bench::master::bench_state();
+        small.resolution = gridlight_actors::state::Resolution { width: 4, height: 2 };
+        let composer = Composer::new(
+            Arc::new(Assets::default()),
+            &small,
+            ReconstructParams::default(),
+            Backend::Cpu,
+        )
+        .unwrap();
         let options = HeadlessOptions {
             out_dir: Some(dir.path().join("frames")),
             stats: Some(dir.path().join("stats.jsonl")),
-            verbose: false,
-            dump_current: false,
+            view: View::Final,
+            exr: true,
+            ..HeadlessOptions::default()
         };
-        let mut sink = HeadlessSink::new(gbuffers, Box::new(HolesVisible), options).unwrap();
+        let mut sink = HeadlessSink::new(composer, options).unwrap();
         for _ in 0..2 {
-            let mut f = frame(vec![Vec3::ONE; 2], vec![1, 1]);
-            f.state = Arc::new(small.clone());
-            sink.show(f).unwrap();
+            sink.show(ShownFrame {
+                frame: 7,
+                state: Arc::new(small.clone()),
+                current: vec![Vec3::ONE; 8],
+                current_mask: vec![true; 8],
+                stats: FrameStats { frame: 7, q: 0.5, jobs_back: 4, ..FrameStats::default() },
+            })
+            .unwrap();
         }
         sink.finish();
         let stats = std::fs::read_to_string(dir.path().join("stats.jsonl")).unwrap();
         assert_eq!(stats.lines().count(), 2);
         let line: serde_json::Value = serde_json::from_str(stats.lines().next().unwrap()).unwrap();
         assert_eq!(line["frame"], 7);
-        assert!(frame_path(&dir.path().join("frames"), 7).is_file());
+        let png = frame_path(&dir.path().join("frames"), 7);
+        let img = image::open(&png).unwrap();
+        assert_eq!((img.width(), img.height()), (4, 2));
+        assert!(png.with_extension("exr").is_file(), "--exr writes the linear final view");
         let summary: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dir.path().join("frames/summary.json")).unwrap(),
         )

@@ -69,7 +69,7 @@ pub fn to_srgb8(pixels: &[Vec3], exposure_stops: f32) -> Vec<u8> {
     pixels.iter().flat_map(|&p| display_pixel(p, exposure_stops)).collect()
 }
 
-fn check_size(width: u32, height: u32, pixels: &[Vec3]) -> Result<(), ImageIoError> {
+fn check_size<T>(width: u32, height: u32, pixels: &[T]) -> Result<(), ImageIoError> {
     if width as usize * height as usize != pixels.len() {
         return Err(ImageIoError::SizeMismatch { width, height, len: pixels.len() });
     }
@@ -87,6 +87,21 @@ pub fn write_png(
     check_size(width, height, pixels)?;
     let bytes = to_srgb8(pixels, exposure_stops);
     let image = image::RgbImage::from_raw(width, height, bytes).expect("size checked above");
+    image
+        .save_with_format(path, image::ImageFormat::Png)
+        .map_err(|source| ImageIoError::Write { path: path.to_path_buf(), source })
+}
+
+/// Writes display-encoded RGBA8 pixels (already tonemapped) as PNG.
+pub fn write_png_rgba8(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[[u8; 4]],
+) -> Result<(), ImageIoError> {
+    check_size(width, height, pixels)?;
+    let bytes: Vec<u8> = pixels.iter().flatten().copied().collect();
+    let image = image::RgbaImage::from_raw(width, height, bytes).expect("size checked above");
     image
         .save_with_format(path, image::ImageFormat::Png)
         .map_err(|source| ImageIoError::Write { path: path.to_path_buf(), source })

@@ -26,6 +26,7 @@ pub mod assets;
 pub mod bench;
 pub mod children;
 pub mod cli;
+pub mod compose;
 pub mod eval;
 pub mod faults;
 pub mod gpu;
@@ -36,6 +37,7 @@ pub mod reconstruct;
 pub mod render;
 pub mod scene;
 pub mod shapes;
+pub mod view;
 pub mod window;
 pub mod worker;
 

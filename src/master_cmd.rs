@@ -1,9 +1,11 @@
 //! Running a master from a scene file: what `gridlight master` and `gridlight demo` share.
 //!
 //! [`prepare`] loads the scene through the asset search path, hashes every asset file
-//! into the store workers fetch from, and builds the headless frame sink; [`run`] starts
-//! the actor system, prints the address it listens on, plays the interaction script and
-//! waits until the frame limit or Ctrl-C, then stops cleanly and returns the report.
+//! into the store workers fetch from, and resolves pacing and reconstruction (command
+//! line over the scene file over the paper); [`run`] starts the actor system with the
+//! headless sink, prints the address it listens on, plays the interaction script and
+//! waits until the frame limit or Ctrl-C, then stops cleanly and returns the report;
+//! [`run_window`] does the same with the window as the sink, until the window closes.
 
 use std::io::Write;
 use std::net::SocketAddr;
@@ -14,12 +16,16 @@ use std::time::Duration;
 
 use anyhow::{bail, Context};
 use gridlight_actors::asset_store::AssetStore;
-use gridlight_actors::master::{self, MasterConfig, MasterReport, Pacing};
+use gridlight_actors::master::{self, MasterConfig, MasterReport};
 use gridlight_actors::protocol::SetsConfig;
 use tracing::{info, warn};
 
-use crate::headless::{GBufferCache, HeadlessOptions, HeadlessSink, HolesVisible};
-use crate::scene::{AssetResolver, AssetSearchPath};
+use crate::assets::Assets;
+use crate::cli::master::DisplayArgs;
+use crate::compose::Composer;
+use crate::headless::{HeadlessOptions, HeadlessSink};
+use crate::reconstruct::ReconstructParams;
+use crate::scene::{AssetResolver, AssetSearchPath, PacingOverrides};
 
 /// Address `gridlight master` listens on when `--listen` is not given.
 pub const DEFAULT_LISTEN: &str = "0.0.0.0:7840";
@@ -35,7 +41,10 @@ pub struct MasterOptions {
     pub asset_dirs: Vec<PathBuf>,
     pub listen: SocketAddr,
     pub sets: SetsConfig,
-    pub pacing: Pacing,
+    /// Pacing flags; the scene's `[render.display]` and the paper fill in the rest.
+    pub pacing: PacingOverrides,
+    /// View and reconstruction flags.
+    pub display: DisplayArgs,
     /// Jobs a worker may hold (k).
     pub pipeline: u32,
     pub secret: Option<Vec<u8>>,
@@ -50,10 +59,20 @@ pub struct Prepared {
     pub config: MasterConfig,
     pub state: gridlight_actors::state::SceneState,
     pub store: AssetStore,
-    pub sink: HeadlessSink,
+    pub assets: Arc<Assets>,
+    /// Reconstruction parameters (command line over scene over paper), checked.
+    pub params: ReconstructParams,
 }
 
-/// Loads the scene and its assets and builds the sink.
+impl Prepared {
+    /// A composer for this run's frames.
+    pub fn composer(&self, opts: &MasterOptions) -> anyhow::Result<Composer> {
+        Composer::new(Arc::clone(&self.assets), &self.state, self.params, opts.display.reconstruct)
+            .with_context(|| format!("preparing reconstruction for {}", opts.scene.display()))
+    }
+}
+
+/// Loads the scene and its assets and resolves the settings.
 pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     let search = AssetSearchPath::from_env(&opts.asset_dirs, Some(&opts.scene));
     let loaded = crate::scene::load(&opts.scene, &search)?;
@@ -66,16 +85,17 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
             .add_file(&entry.path, &file)
             .with_context(|| format!("serving asset `{}`", entry.path))?;
     }
-    let gbuffers = GBufferCache::new(Arc::new(loaded.assets), &loaded.state)
-        .with_context(|| format!("preparing the G-buffer of {}", opts.scene.display()))?;
-    let sink = HeadlessSink::new(gbuffers, Box::new(HolesVisible), opts.headless.clone())
-        .context("creating the output directory or the stats file")?;
+    let params = opts.display.params(loaded.reconstruction);
+    params.validate().context("reconstruction parameters")?;
     let mut config = MasterConfig::new(opts.listen, opts.sets);
-    config.pacing = opts.pacing;
+    config.pacing = crate::scene::display_pacing(&loaded.display, &opts.pacing);
+    if let Err(why) = config.pacing.validate() {
+        bail!("pacing: {why}");
+    }
     config.pipeline = opts.pipeline.max(1);
     config.secret = opts.secret.clone();
     config.max_frames = opts.frames;
-    Ok(Prepared { config, state: loaded.state, store, sink })
+    Ok(Prepared { config, state: loaded.state, store, assets: Arc::new(loaded.assets), params })
 }
 
 /// Runs a master until its frame limit or Ctrl-C; `on_listening` is called with the
@@ -86,24 +106,14 @@ pub fn run(
     on_listening: impl FnOnce(SocketAddr) -> anyhow::Result<()>,
 ) -> anyhow::Result<MasterReport> {
     let prepared = prepare(opts)?;
-    let script = match &opts.script {
-        Some(path) => Some(gridlight_actors::script::load(path)?),
-        None => None,
-    };
-    if prepared.config.secret.is_none() {
-        warn!("no --secret-file: ANY host that can reach this master may join as a worker");
-        eprintln!(
-            "gridlight master: no --secret-file given, so any host on the network may join as a worker"
-        );
-    }
-    let handle =
-        master::start(prepared.config, prepared.state, prepared.store, Box::new(prepared.sink))
-            .with_context(|| format!("starting the master on {}", opts.listen))?;
-    let addr = handle.local_addr();
-    println!("{LISTENING_PREFIX}{addr}");
-    let _ = std::io::stdout().flush();
-    info!(%addr, "master started");
-    on_listening(addr)?;
+    let script = load_script(opts)?;
+    let sink = HeadlessSink::new(prepared.composer(opts)?, opts.headless.clone())
+        .context("creating the output directory or the stats file")?;
+    warn_if_open(&prepared.config);
+    let handle = master::start(prepared.config, prepared.state, prepared.store, Box::new(sink))
+        .with_context(|| format!("starting the master on {}", opts.listen))?;
+    announce(handle.local_addr());
+    on_listening(handle.local_addr())?;
     if let Some(script) = script {
         handle.play_script(script);
     }
@@ -119,6 +129,56 @@ pub fn run(
         bail!("the master stopped on an error: {err}");
     }
     Ok(report)
+}
+
+/// Runs a master whose frames go to a window on this thread, until the window closes
+/// (or the frame limit); then `on_shutdown` runs (the demo stops its workers there).
+pub fn run_window(
+    opts: &MasterOptions,
+    window: crate::window::WindowOptions,
+    on_listening: impl FnOnce(SocketAddr) -> anyhow::Result<()> + 'static,
+    on_shutdown: Option<Box<dyn FnOnce()>>,
+) -> anyhow::Result<()> {
+    let prepared = prepare(opts)?;
+    let script = load_script(opts)?;
+    let composer = prepared.composer(opts)?;
+    warn_if_open(&prepared.config);
+    let start = crate::window::session::MasterStart {
+        config: prepared.config,
+        state: prepared.state,
+        store: prepared.store,
+        composer,
+        script,
+        on_listening: Box::new(move |addr| {
+            announce(addr);
+            on_listening(addr).map_err(|e| format!("{e:#}"))
+        }),
+        on_shutdown,
+    };
+    crate::window::session::run_master_window(window, start)
+        .context("running the window (use --headless to run without one)")
+}
+
+fn load_script(
+    opts: &MasterOptions,
+) -> anyhow::Result<Option<Vec<(Duration, gridlight_actors::edit::Edit)>>> {
+    opts.script.as_ref().map(|path| Ok(gridlight_actors::script::load(path)?)).transpose()
+}
+
+fn warn_if_open(config: &MasterConfig) {
+    if config.secret.is_none() {
+        warn!("no --secret-file: ANY host that can reach this master may join as a worker");
+        eprintln!(
+            "gridlight master: no --secret-file given, so any host on the network may join as a worker"
+        );
+    }
+}
+
+/// Prints the line tools and tests wait for.
+fn announce(addr: SocketAddr) {
+    println!("{LISTENING_PREFIX}{addr}");
+    let _ = std::io::stdout().flush();
+    info!(%addr, "master started");
 }
 
 /// A flag set by Ctrl-C (a tokio signal listener on a small thread of its own).

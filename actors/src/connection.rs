@@ -93,6 +93,8 @@ pub struct Connection {
     peer: SocketAddr,
     /// The worker's name from `Hello` (empty before).
     name: String,
+    /// Render threads the worker said it has (`Hello`).
+    cores: u32,
     phase: Phase,
     config: Arc<ConnectionConfig>,
     links: ConnectionLinks,
@@ -126,6 +128,7 @@ impl Connection {
             id,
             peer,
             name: String::new(),
+            cores: 0,
             phase: Phase::Hello,
             config,
             links,
@@ -159,6 +162,7 @@ impl Actor for Connection {
         self.links.left_to.do_send(WorkerLeft { conn: self.id });
         if self.welcomed {
             self.counters.workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+            self.counters.workers_table.left(self.id);
         }
         self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed });
         tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer,
@@ -172,6 +176,9 @@ impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
             return;
         }
         self.last_recv = Instant::now();
+        if self.welcomed {
+            self.counters.workers_table.heard(self.id, 0);
+        }
         match item {
             Ok(msg) => {
                 if let Err(panic) = contain(|| self.on_message(msg, ctx)) {
@@ -245,6 +252,7 @@ impl Connection {
         match (&self.phase, msg) {
             (Phase::Hello, WorkerMsg::Hello { protocol, name, cores }) => {
                 self.name = sanitize(&name);
+                self.cores = cores;
                 if protocol != PROTOCOL_VERSION {
                     return self.reject(
                         format!("protocol version mismatch: worker speaks {protocol}, master speaks {PROTOCOL_VERSION}"),
@@ -278,6 +286,7 @@ impl Connection {
                 self.phase = Phase::Work;
                 self.welcomed = true;
                 Counters::add(&self.counters.workers, 1);
+                self.counters.workers_table.joined(self.id, &self.name, self.cores);
                 tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer, "worker joined");
                 self.send(MasterMsg::Welcome {
                     worker_id: self.id,
@@ -348,6 +357,7 @@ impl Connection {
                     );
                 }
                 self.remember_answered(key);
+                self.counters.workers_table.heard(self.id, 1);
                 self.links.results_to.do_send(ResultArrived { conn: self.id, result: r });
             }
             None if self.answered_set.contains(&key) => {

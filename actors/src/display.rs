@@ -2,8 +2,8 @@
 //!
 //! It follows the oldest frame not yet displayed, asks the [`wait_heuristic`] on every
 //! progress report and at the heuristic's deadlines, then closes the frame at the
-//! assembler (late results are refused from then on), tells the scheduler, accumulates
-//! while the state version is unchanged and sends one [`ShownFrame`] per shown frame
+//! assembler (late results are refused from then on), tells the scheduler, counts the
+//! frames shown with the same state version (the sink accumulates their pixels) and sends one [`ShownFrame`] per shown frame
 //! to the sink thread. Skipped frames only count.
 //!
 //! [`wait_heuristic`]: crate::wait_heuristic
@@ -100,7 +100,6 @@ pub struct DisplayConfig {
     /// I_t's denominator before the first frame was shown.
     pub initial_frame_time: Duration,
     pub max_frames: Option<u64>,
-    pub pixels: usize,
     pub policy: RestartPolicy,
 }
 
@@ -123,7 +122,7 @@ impl Display {
             skipped_since_show: 0,
             shown: 0,
             max_frames: config.max_frames,
-            accum: Accumulator::new(config.pixels),
+            accum: Accumulator::default(),
             timer: None,
             sink: Some(sink),
             sink_tx: None,
@@ -181,6 +180,22 @@ impl Handler<SinkDone> for Display {
             Ok(()) => self.evaluate(ctx),
             Err(e) => self.fail(e),
         }
+    }
+}
+
+/// Changes how frames are paced from now on (the window's sliders).
+#[derive(Message)]
+#[rtype(result = "Result<(), String>")]
+pub struct SetPacing(pub Pacing);
+
+impl Handler<SetPacing> for Display {
+    type Result = Result<(), String>;
+    fn handle(&mut self, msg: SetPacing, ctx: &mut Context<Self>) -> Self::Result {
+        msg.0.validate()?;
+        self.pacing = msg.0;
+        // A looser bound may show the waiting frame at once; a tighter one re-arms the timer.
+        self.evaluate(ctx);
+        Ok(())
     }
 }
 
@@ -286,8 +301,7 @@ impl Display {
     /// Accumulates a closed frame, sends it to the sink and publishes its statistics.
     fn show(&mut self, closed: ClosedFrame, q: f64, i: f64, elapsed: Duration) {
         let version = closed.state.version;
-        self.accum.add(version, &closed.radiance, &closed.mask);
-        let (accumulated, accumulated_frames) = self.accum.mean();
+        self.accum.add(version);
         self.shown += 1;
         let c = &self.counters;
         let stats = FrameStats {
@@ -313,8 +327,6 @@ impl Display {
             state: closed.state,
             current: closed.radiance,
             current_mask: closed.mask,
-            accumulated,
-            accumulated_frames,
             stats: stats.clone(),
         };
         if let Some(tx) = &self.sink_tx {
@@ -370,7 +382,7 @@ impl Display {
     fn restart_after(&mut self, msg: &str, ctx: &mut Context<Self>) {
         let counters = self.counters.clone();
         if after_panic("display", msg, &mut self.restarts, &counters, ctx) {
-            self.accum = Accumulator::new(self.accum.pixels());
+            self.accum = Accumulator::default();
             self.closing = false;
             ctx.run_later(Duration::ZERO, |act, ctx| act.evaluate(ctx));
         }

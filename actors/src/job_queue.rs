@@ -5,6 +5,11 @@
 //! handed out front first. A job leaves the queue exactly once: nothing lost is ever
 //! queued again (STYLE.md item 7). At most `max_frames_open` frames exist between the
 //! display and the newest scheduled frame, so fast workers cannot run unboundedly ahead.
+//!
+//! Each frame's sets are queued in a rotated order ([`first_set`]): the display often shows
+//! a frame before its last jobs return, and with one fixed order the same sets (and so the
+//! same pixels) would be the ones missing in every frame, so accumulation would never fill
+//! them while the view is static.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -78,7 +83,9 @@ impl JobQueue {
         {
             let frame = self.next_frame;
             self.next_frame += 1;
-            for set in 0..self.sets {
+            let first = first_set(frame, self.sets);
+            for i in 0..self.sets {
+                let set = (first + i) % self.sets;
                 self.queue.push_back(Job { frame, set, state: self.state.clone() });
             }
             added.push(NewFrame { frame, state: self.state.clone() });
@@ -116,6 +123,15 @@ impl JobQueue {
     pub fn first_open(&self) -> FrameNo {
         self.first_open
     }
+}
+
+/// The set a frame's jobs start with: a Weyl sequence over the golden ratio, so that the
+/// starts of consecutive frames spread evenly over all `sets` and every set is early in
+/// some frames and late in others.
+pub fn first_set(frame: FrameNo, sets: u32) -> SetNo {
+    const PHI_FRACTION: f64 = 0.618_033_988_749_894_9;
+    let t = (frame as f64 * PHI_FRACTION).fract();
+    ((t * f64::from(sets)) as u32).min(sets.saturating_sub(1))
 }
 
 #[cfg(test)]
@@ -179,6 +195,27 @@ pub(crate) mod tests {
             assert_eq!(s.len(), sets.len(), "frame {frame} handed a set twice");
             assert!(sets.len() <= 5);
         }
+    }
+
+    #[test]
+    fn every_set_is_among_the_first_half_of_some_frame_within_a_few_frames() {
+        // Frames shown at Q = 0.5 get their first half of jobs back: over a few frames
+        // every pixel must have had results, or accumulation leaves holes for ever.
+        let sets = 64;
+        let mut q = JobQueue::new(sets, sets as usize, state(1), 0);
+        let mut seen = vec![false; sets as usize];
+        for _ in 0..6 {
+            q.top_up();
+            let frame = q.take(sets as usize);
+            assert!(frame.iter().all(|j| j.frame == frame[0].frame), "one whole frame");
+            for j in &frame[..sets as usize / 2] {
+                seen[j.set as usize] = true;
+            }
+            q.frame_displayed(frame[0].frame);
+        }
+        let missing: Vec<usize> = (0..seen.len()).filter(|&s| !seen[s]).collect();
+        assert!(missing.is_empty(), "sets never early in 6 frames: {missing:?}");
+        assert!((0..1000).all(|f| first_set(f, sets) < sets));
     }
 
     #[test]

@@ -39,3 +39,4 @@ pub mod state;
 pub mod stats;
 pub mod supervisor;
 pub mod wait_heuristic;
+pub mod workers;

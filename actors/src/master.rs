@@ -19,7 +19,7 @@ use actix::prelude::*;
 use crate::assembler::Assembler;
 use crate::asset_store::AssetStore;
 use crate::connection::{ConnectionConfig, ConnectionLinks};
-use crate::display::{Display, DisplayConfig, Report, ReportState, Shutdown};
+use crate::display::{Display, DisplayConfig, Report, ReportState, SetPacing, Shutdown};
 use crate::edit::{Edit, EditError};
 use crate::frame_table::ConnId;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
@@ -99,6 +99,8 @@ pub enum ActorKind {
 pub enum MasterError {
     #[error("the master has stopped")]
     Stopped,
+    #[error("pacing: {0}")]
+    Pacing(String),
     #[error(transparent)]
     Edit(#[from] EditError),
 }
@@ -202,7 +204,6 @@ fn wire(
     let socket = tokio::net::TcpListener::from_std(socket)?;
     let state = Arc::new(state);
     let threshold = config.queue_threshold.unwrap_or(2 * config.sets.sets as usize);
-    let pixels = state.resolution.pixels();
 
     let display_ctx = Context::<Display>::new();
     let assembler_ctx = Context::<Assembler>::new();
@@ -214,7 +215,6 @@ fn wire(
         pacing: config.pacing,
         initial_frame_time: config.initial_frame_time,
         max_frames: config.max_frames,
-        pixels,
         policy: config.restart,
     };
     display_ctx.run(Display::new(
@@ -277,6 +277,17 @@ impl MasterHandle {
     /// Applies an edit to the scene state; answers the new version.
     pub fn edit(&self, edit: Edit) -> Result<StateVersion, MasterError> {
         Ok(block_on(self.scene.send(ApplyEdit(edit)))??)
+    }
+
+    /// Changes the pacing (wait heuristic bounds or frame rate) from now on; a bad value
+    /// is refused with the reason and the pacing stays as it was.
+    pub fn set_pacing(&self, pacing: Pacing) -> Result<(), MasterError> {
+        block_on(self.display.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)
+    }
+
+    /// The workers connected now, with their rates.
+    pub fn workers(&self) -> Vec<crate::workers::WorkerInfo> {
+        self.counters.workers_table.list()
     }
 
     /// Plays an interaction script from now on.

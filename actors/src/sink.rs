@@ -27,10 +27,6 @@ pub struct ShownFrame {
     pub current: Vec<Vec3>,
     /// Pixels covered by a result of this frame.
     pub current_mask: Vec<bool>,
-    /// Mean radiance per pixel over all shown frames since the last state change.
-    pub accumulated: Vec<Vec3>,
-    /// Number of frames that contributed to each pixel of `accumulated`.
-    pub accumulated_frames: Vec<u32>,
     pub stats: FrameStats,
 }
 

@@ -35,6 +35,8 @@ pub struct Counters {
     /// Connections ended on an error, by kind ([`rejection_kind`], `"full"` for
     /// refused at the cap, `"io"` for a broken stream); bounded: the kinds are fixed.
     pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
+    /// Connected workers, for the status panel.
+    pub workers_table: crate::workers::WorkerTable,
 }
 
 impl Counters {

@@ -2,19 +2,21 @@
 //!
 //! The workers are child processes of this executable (`gridlight worker`), not
 //! threads, so they behave exactly like remote ones (own connection, handshake, asset
-//! fetch into a cache); they are killed when the demo ends, however it ends. Without a
-//! display (no `DISPLAY`/`WAYLAND_DISPLAY`) the demo is headless and writes frames and
+//! fetch into a cache); they are killed when the demo ends, however it ends. With a
+//! display the frames appear in the window until it is closed; without one (no
+//! `DISPLAY`/`WAYLAND_DISPLAY`) or with `--headless` the demo writes frames and
 //! statistics for a bounded number of frames, so it terminates.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
 
 use anyhow::{bail, Context};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use tracing::info;
 
-use super::master::{PacingArgs, DEFAULT_SETS};
+use super::master::{DisplayArgs, PacingArgs, DEFAULT_SETS};
 use super::GlobalArgs;
 use crate::children::Children;
 use crate::headless::HeadlessOptions;
@@ -35,9 +37,15 @@ pub struct Args {
     /// Local worker processes (default: one per core).
     #[arg(long)]
     pub workers: Option<usize>,
-    /// Frames to show before stopping.
-    #[arg(long, default_value_t = DEFAULT_FRAMES)]
-    pub frames: u64,
+    /// Frames to show before stopping (headless default: 30; the window runs until closed).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// No window even when a display exists.
+    #[arg(long)]
+    pub headless: bool,
+    /// Interaction script: a TOML file of timed edits, played from the start.
+    #[arg(long, value_name = "FILE")]
+    pub script: Option<PathBuf>,
     /// Output directory for frames, `stats.jsonl` and `summary.json`.
     #[arg(long, default_value = DEFAULT_OUT)]
     pub out: PathBuf,
@@ -46,13 +54,8 @@ pub struct Args {
     pub sets: u32,
     #[command(flatten)]
     pub pacing: PacingArgs,
-}
-
-/// True when a window could be opened (an X11 or Wayland display is set).
-pub fn has_display() -> bool {
-    ["DISPLAY", "WAYLAND_DISPLAY"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+    #[command(flatten)]
+    pub display: DisplayArgs,
 }
 
 /// Runs `gridlight demo`.
@@ -64,9 +67,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             scene.display()
         );
     }
-    if has_display() {
-        info!("a display is available, but the window is not built yet: running headless");
-    }
+    let windowed = !args.headless && crate::window::display_available();
     let workers = args
         .workers
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
@@ -85,43 +86,67 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         asset_dirs: global.assets.clone(),
         listen: SocketAddr::from(([127, 0, 0, 1], 0)),
         sets: SetsConfig { sets: args.sets, partition: Partition::QuasiRandom },
-        pacing: args.pacing.pacing()?,
+        pacing: args.pacing.overrides(),
+        display: args.display.clone(),
         pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
         secret: Some(secret_hex),
-        script: None,
-        frames: Some(args.frames),
+        script: args.script.clone(),
+        frames: if windowed { args.frames } else { Some(args.frames.unwrap_or(DEFAULT_FRAMES)) },
         headless: HeadlessOptions {
             out_dir: Some(args.out.clone()),
             stats: Some(args.out.join("stats.jsonl")),
             verbose: true,
-            dump_current: false,
+            view: args.display.view,
+            ..HeadlessOptions::default()
         },
     };
-    let mut children = Children::new();
-    let report = master_cmd::run(&opts, |addr| {
-        for i in 0..workers {
-            let mut cmd = Command::new(&exe);
-            cmd.args(["worker", "--threads", "1", "--master"])
-                .arg(addr.to_string())
-                .arg("--name")
-                .arg(format!("demo-{i}"))
-                .arg("--secret-file")
-                .arg(&secret_file)
-                .stdin(Stdio::null());
-            let pid = children.spawn(cmd).context("starting a worker process")?;
-            info!(pid, "worker process started");
+    let children = Arc::new(Mutex::new(Children::new()));
+    let start_workers = {
+        let children = Arc::clone(&children);
+        let secret_file = secret_file.clone();
+        move |addr: SocketAddr| -> anyhow::Result<()> {
+            let mut children = children.lock().unwrap_or_else(|p| p.into_inner());
+            for i in 0..workers {
+                let mut cmd = Command::new(&exe);
+                cmd.args(["worker", "--threads", "1", "--master"])
+                    .arg(addr.to_string())
+                    .arg("--name")
+                    .arg(format!("demo-{i}"))
+                    .arg("--secret-file")
+                    .arg(&secret_file)
+                    .stdin(Stdio::null());
+                let pid = children.spawn(cmd).context("starting a worker process")?;
+                info!(pid, "worker process started");
+            }
+            Ok(())
         }
-        Ok(())
-    });
-    children.kill_all();
+    };
+    let stop_workers = {
+        let children = Arc::clone(&children);
+        move || children.lock().unwrap_or_else(|p| p.into_inner()).kill_all()
+    };
+    let outcome = if windowed {
+        let window = crate::window::WindowOptions {
+            title: format!("gridlight demo: {}", opts.scene.display()),
+            view: args.display.view,
+            shot_dir: args.out.clone(),
+            ..crate::window::WindowOptions::default()
+        };
+        master_cmd::run_window(&opts, window, start_workers, Some(Box::new(stop_workers.clone())))
+            .map(|()| None)
+    } else {
+        master_cmd::run(&opts, start_workers).map(Some)
+    };
+    stop_workers();
     let _ = std::fs::remove_file(&secret_file);
-    let report = report?;
-    println!(
-        "demo: {} frames shown ({} skipped) by {workers} worker processes; frames and stats in {}",
-        report.shown,
-        report.skipped,
-        args.out.display()
-    );
+    if let Some(report) = outcome? {
+        println!(
+            "demo: {} frames shown ({} skipped) by {workers} worker processes; frames and stats in {}",
+            report.shown,
+            report.skipped,
+            args.out.display()
+        );
+    }
     Ok(())
 }
 

@@ -1,15 +1,18 @@
-//! `gridlight master`: serve a scene to workers and show (here: write) the frames.
+//! `gridlight master`: serve a scene to workers and show the frames in a window, or
+//! write them (`--headless`, or when no display exists).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use anyhow::bail;
-use gridlight_actors::master::{Heuristic, Pacing};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 
 use super::GlobalArgs;
 use crate::headless::HeadlessOptions;
 use crate::master_cmd::{self, MasterOptions, DEFAULT_LISTEN};
+use crate::reconstruct::{Backend, ReconstructParams};
+use crate::scene::PacingOverrides;
+use crate::view::View;
 
 /// Sets per frame when `--sets` is not given (DESIGN.md decision 1).
 pub const DEFAULT_SETS: u32 = 64;
@@ -51,24 +54,63 @@ pub struct PacingArgs {
 }
 
 impl PacingArgs {
-    /// The pacing these options describe (paper defaults for what is not given).
-    pub fn pacing(&self) -> anyhow::Result<Pacing> {
-        let pacing = match self.fps {
-            Some(fps) => Pacing::FixedFps(fps),
-            None => {
-                let d = Heuristic::default();
-                Pacing::Heuristic(Heuristic {
-                    q_min: self.qmin.unwrap_or(d.q_min),
-                    q_max: self.qmax.unwrap_or(d.q_max),
-                    i_min: self.imin.unwrap_or(d.i_min),
-                    i_max: self.imax.unwrap_or(d.i_max),
-                })
-            }
-        };
-        if let Err(e) = pacing.validate() {
-            bail!("pacing: {e}");
+    /// What the command line says; the scene file and the paper fill in the rest.
+    pub fn overrides(&self) -> PacingOverrides {
+        PacingOverrides {
+            fps: self.fps,
+            q_min: self.qmin,
+            q_max: self.qmax,
+            i_min: self.imin,
+            i_max: self.imax,
         }
-        Ok(pacing)
+    }
+}
+
+/// What the master shows or writes, and how it reconstructs (each flag overrides the
+/// scene's `[render.reconstruction]`, which overrides the paper's values).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct DisplayArgs {
+    /// The view shown in the window or written as PNG.
+    #[arg(long, value_enum, default_value_t = View::Final)]
+    pub view: View,
+    /// Reconstruction on the GPU, the CPU, or the GPU when an adapter exists.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub reconstruct: Backend,
+    /// Discontinuity threshold α on the cosine between normals.
+    #[arg(long)]
+    pub alpha: Option<f32>,
+    /// Discontinuity threshold β on positions, in units of the scene's half-extent.
+    #[arg(long)]
+    pub beta: Option<f32>,
+    /// Fill radius in pixels.
+    #[arg(long)]
+    pub radius: Option<u32>,
+    /// Width of the edge-aware Gaussian (odd).
+    #[arg(long)]
+    pub gauss_width: Option<u32>,
+    /// σ of the edge-aware Gaussian in pixels.
+    #[arg(long)]
+    pub sigma: Option<f32>,
+    /// Previous frames blended while interacting (0: spatial only).
+    #[arg(long)]
+    pub history: Option<u32>,
+    /// Exposure in stops before the filmic tonemap.
+    #[arg(long)]
+    pub exposure: Option<f32>,
+}
+
+impl DisplayArgs {
+    /// `base` (the scene's parameters) with this command line's overrides.
+    pub fn params(&self, base: ReconstructParams) -> ReconstructParams {
+        ReconstructParams {
+            alpha: self.alpha.unwrap_or(base.alpha),
+            beta: self.beta.unwrap_or(base.beta),
+            radius: self.radius.unwrap_or(base.radius),
+            gauss_width: self.gauss_width.unwrap_or(base.gauss_width),
+            sigma: self.sigma.unwrap_or(base.sigma),
+            history: self.history.unwrap_or(base.history),
+            exposure: self.exposure.unwrap_or(base.exposure),
+        }
     }
 }
 
@@ -88,21 +130,26 @@ pub struct Args {
     pub partition: PartitionArg,
     #[command(flatten)]
     pub pacing: PacingArgs,
+    #[command(flatten)]
+    pub display: DisplayArgs,
     /// Jobs a worker may hold at once (k; 1 is the paper's request/response).
     #[arg(long, default_value_t = gridlight_actors::master::DEFAULT_PIPELINE)]
     pub pipeline: u32,
     /// Interaction script: a TOML file of timed edits.
     #[arg(long, value_name = "FILE")]
     pub script: Option<PathBuf>,
-    /// No window: write frames and statistics (the only mode until the window lands).
+    /// No window even when a display exists: write frames and statistics.
     #[arg(long)]
     pub headless: bool,
     /// Stop after this many shown frames (default: run until Ctrl-C).
     #[arg(long, value_name = "N")]
     pub frames: Option<u64>,
-    /// Write every shown frame as PNG into this directory, plus `summary.json`.
+    /// Write every shown frame (the `--view`) as PNG into this directory, plus `summary.json`.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// With `--out`, also write the final view's linear colour as EXR.
+    #[arg(long, requires = "out")]
+    pub exr: bool,
     /// Statistics, one JSON line per shown frame.
     #[arg(long, value_name = "FILE.jsonl")]
     pub stats: Option<PathBuf>,
@@ -129,7 +176,8 @@ impl Args {
             asset_dirs: global.assets.clone(),
             listen: self.listen,
             sets: SetsConfig { sets: self.sets, partition: self.partition.into() },
-            pacing: self.pacing.pacing()?,
+            pacing: self.pacing.overrides(),
+            display: self.display.clone(),
             pipeline: self.pipeline,
             secret,
             script: self.script.clone(),
@@ -138,6 +186,8 @@ impl Args {
                 out_dir: self.out.clone(),
                 stats: self.stats.clone(),
                 verbose: true,
+                view: self.display.view,
+                exr: self.exr,
                 dump_current: self.dump_current,
             },
         })
@@ -147,8 +197,14 @@ impl Args {
 /// Runs `gridlight master`.
 pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
     let opts = args.options(global)?;
-    if !args.headless {
-        tracing::info!("no window yet: running headless");
+    if !args.headless && crate::window::display_available() {
+        let window = crate::window::WindowOptions {
+            title: format!("gridlight master: {}", opts.scene.display()),
+            view: args.display.view,
+            shot_dir: args.out.clone().unwrap_or_else(|| PathBuf::from(".")),
+            ..crate::window::WindowOptions::default()
+        };
+        return master_cmd::run_window(&opts, window, |_| Ok(()), None);
     }
     let report = master_cmd::run(&opts, |_| Ok(()))?;
     tracing::info!(shown = report.shown, skipped = report.skipped, "master finished");

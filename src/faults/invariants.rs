@@ -214,14 +214,11 @@ mod tests {
             environment: None,
             render: RenderSettings::default(),
         };
-        let n = values.len();
         ShownFrame {
             frame,
             state: Arc::new(state),
             current_mask: values.iter().map(|v| *v != Vec3::ZERO).collect(),
             current: values,
-            accumulated: vec![Vec3::ZERO; n],
-            accumulated_frames: vec![0; n],
             stats: FrameStats { frame, jobs_back, jobs_total: 4, ..Default::default() },
         }
     }

@@ -22,6 +22,7 @@ use super::obj::read_obj;
 use super::search::{check_asset_path, AssetResolver};
 use super::{mtl, LoadedScene};
 use crate::assets::Assets;
+use crate::reconstruct::ReconstructError;
 use crate::shapes;
 
 /// Largest accepted image side in pixels.
@@ -41,6 +42,7 @@ pub fn build(
     let resolution = b.resolution(&file.resolution)?;
     let camera = b.camera(&file.camera)?;
     let render = b.render(&file.render)?;
+    b.master_settings(&file.render)?;
     let mut names = HashMap::new();
     for (i, m) in file.materials.iter().enumerate() {
         let key = format!("materials[{i}]");
@@ -83,7 +85,12 @@ pub fn build(
         environment,
         render,
     };
-    Ok(LoadedScene { state, assets: b.assets })
+    Ok(LoadedScene {
+        state,
+        assets: b.assets,
+        reconstruction: file.render.reconstruction,
+        display: file.render.display,
+    })
 }
 
 struct Builder<'a> {
@@ -182,6 +189,24 @@ impl Builder<'_> {
             return Err(self.invalid("render.spp", "must be at least 1"));
         }
         Ok(RenderSettings { max_depth: r.max_depth, spp: r.spp })
+    }
+
+    /// Checks the master-only settings (reconstruction, display pacing).
+    fn master_settings(&self, r: &RenderDesc) -> Result<(), SceneError> {
+        if let Err(ReconstructError::BadParam { name, why }) = r.reconstruction.validate() {
+            return Err(self.invalid(format!("render.reconstruction.{name}"), why));
+        }
+        let d = &r.display;
+        if d.fps.is_some() && [d.q_min, d.q_max, d.i_min, d.i_max].iter().any(Option::is_some) {
+            return Err(self.invalid(
+                "render.display",
+                "give either `fps` or the wait heuristic's bounds, not both",
+            ));
+        }
+        if let Err(why) = super::display_pacing(d, &Default::default()).validate() {
+            return Err(self.invalid("render.display", why));
+        }
+        Ok(())
     }
 
     fn material(&self, m: &MaterialDesc, key: &str) -> Result<Material, SceneError> {

@@ -106,6 +106,25 @@ pub struct RenderDesc {
     /// Samples per pixel per update.
     #[serde(default = "default_spp")]
     pub spp: u32,
+    /// `[render.reconstruction]`: the master's reconstruction (paper defaults).
+    #[serde(default)]
+    pub reconstruction: crate::reconstruct::ReconstructParams,
+    /// `[render.display]`: when the master shows a frame.
+    #[serde(default)]
+    pub display: DisplayDesc,
+}
+
+/// `[render.display]`: the paper's wait heuristic (any of `q_min`, `q_max`, `i_min`,
+/// `i_max`; the rest keep the paper's values) or a fixed frame rate (`fps`), not both.
+/// Command-line flags override each.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DisplayDesc {
+    pub fps: Option<f32>,
+    pub q_min: Option<f64>,
+    pub q_max: Option<f64>,
+    pub i_min: Option<f64>,
+    pub i_max: Option<f64>,
 }
 
 fn default_max_depth() -> u32 {
@@ -117,7 +136,12 @@ fn default_spp() -> u32 {
 
 impl Default for RenderDesc {
     fn default() -> Self {
-        Self { max_depth: default_max_depth(), spp: default_spp() }
+        Self {
+            max_depth: default_max_depth(),
+            spp: default_spp(),
+            reconstruction: Default::default(),
+            display: DisplayDesc::default(),
+        }
     }
 }
 

@@ -16,6 +16,7 @@ pub mod loader;
 pub mod manifest;
 pub mod mtl;
 pub mod obj;
+pub mod pacing;
 pub mod search;
 
 use std::path::Path;
@@ -23,10 +24,11 @@ use std::path::Path;
 use gridlight_actors::state::SceneState;
 
 use crate::assets::Assets;
-pub use description::SceneFile;
+pub use description::{DisplayDesc, SceneFile};
 pub use error::{AssetError, Problem, SceneError};
 pub use loader::load_assets;
 pub use manifest::manifest;
+pub use pacing::{display_pacing, PacingOverrides};
 pub use search::{AssetResolver, AssetSearchPath, ResolveError};
 
 /// A loaded scene: the state a worker renders and the asset data it names.
@@ -34,6 +36,10 @@ pub use search::{AssetResolver, AssetSearchPath, ResolveError};
 pub struct LoadedScene {
     pub state: SceneState,
     pub assets: Assets,
+    /// `[render.reconstruction]`, checked.
+    pub reconstruction: crate::reconstruct::ReconstructParams,
+    /// `[render.display]`, checked.
+    pub display: DisplayDesc,
 }
 
 /// Reads, parses and builds the scene file at `path`, finding assets through `resolver`.

@@ -289,7 +289,7 @@ impl App {
                     KeyCode::Digit4 => 3,
                     _ => 4,
                 };
-                self.settings.view = super::picture::View::ALL[i];
+                self.settings.view = crate::view::View::ALL[i];
             }
             KeyCode::ArrowLeft => self.nudge(Nudge::Left),
             KeyCode::ArrowRight => self.nudge(Nudge::Right),

@@ -45,10 +45,11 @@ pub mod screenshot;
 pub mod session;
 pub mod status;
 
+use crate::view::View;
 use edits::SceneEdit;
 use latest::Latest;
 use panel::PacingChoice;
-use picture::{Picture, View};
+use picture::Picture;
 use status::StatusView;
 
 /// Events that other threads send to the window's event loop.

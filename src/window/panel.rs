@@ -10,8 +10,9 @@ use gridlight_actors::state::{Environment, Light, MaterialKind, SceneState};
 
 use super::camera::CameraMode;
 use super::edits::{join_power, split_power, SceneEdit};
-use super::picture::View;
 use super::status::{human_bytes, StatusView};
+use crate::view::View;
+use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
 
 /// Pacing of frames as the panel edits it (paper §4.3).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,6 +21,36 @@ pub enum PacingChoice {
     Heuristic { q_min: f32, q_max: f32, i_min: f32, i_max: f32 },
     /// A fixed frame rate.
     FixedFps(f32),
+}
+
+impl From<Pacing> for PacingChoice {
+    fn from(p: Pacing) -> Self {
+        match p {
+            Pacing::Heuristic(h) => PacingChoice::Heuristic {
+                q_min: h.q_min as f32,
+                q_max: h.q_max as f32,
+                i_min: h.i_min as f32,
+                i_max: h.i_max as f32,
+            },
+            Pacing::FixedFps(fps) => PacingChoice::FixedFps(fps),
+        }
+    }
+}
+
+impl From<PacingChoice> for Pacing {
+    fn from(p: PacingChoice) -> Self {
+        match p {
+            PacingChoice::Heuristic { q_min, q_max, i_min, i_max } => {
+                Pacing::Heuristic(Heuristic {
+                    q_min: f64::from(q_min),
+                    q_max: f64::from(q_max),
+                    i_min: f64::from(i_min),
+                    i_max: f64::from(i_max),
+                })
+            }
+            PacingChoice::FixedFps(fps) => Pacing::FixedFps(fps),
+        }
+    }
 }
 
 /// File format of the screenshot key.

@@ -6,9 +6,10 @@
 //! builds the picture, leaves it in the newest-only slot and wakes the event loop. A failed
 //! wake-up means the window is gone, which the sink reports as `SinkError::Closed`.
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::Arc;
 use std::time::Duration;
 
 use gridlight_actors::edit::Edit;
@@ -16,145 +17,48 @@ use gridlight_actors::edit::{CameraEdit, EnvironmentEdit, MaterialEdit, ObjectEd
 use gridlight_actors::master::MasterHandle;
 use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
 use gridlight_actors::state::SceneState;
-use rayon::prelude::*;
 use serde::Serialize;
 use winit::event_loop::EventLoopProxy;
 
 use super::edits::SceneEdit;
 use super::latest::Latest;
 use super::panel::PacingChoice;
-use super::picture::{self, Picture, View, ViewInputs};
-use super::status::StatusView;
+use super::picture::Picture;
+use super::status::{StatusView, WorkerRow};
 use super::{Composed, Session, UserEvent};
-use crate::assets::Assets;
-use crate::reconstruct::{self, Backend, FrameInputs, GBuffer, ReconstructParams, Reconstructor};
-use crate::render::{self, RenderScene};
-
-/// The render scene of the shown frame, shared by the sink (G-buffer) and the window (picking).
-pub type SharedScene = Arc<RwLock<Option<RenderScene>>>;
+use crate::compose::{Composer, SharedScene};
+use crate::render;
+use crate::view::View;
 
 /// The view the window wants, shared with the sink (index into [`View::ALL`]).
 pub type SharedView = Arc<AtomicU8>;
 
 /// Frame sink that composes pictures for the window.
 pub struct WindowSink {
-    assets: Arc<Assets>,
-    scene: SharedScene,
+    composer: Composer,
     view: SharedView,
     frames: Arc<Latest<Composed>>,
     proxy: EventLoopProxy<UserEvent>,
-    params: ReconstructParams,
-    /// G-buffer of the last state version seen.
-    gbuffer: Option<(u64, GBuffer)>,
-    reconstructor: Option<Reconstructor>,
 }
 
 impl WindowSink {
     pub fn new(
-        assets: Arc<Assets>,
-        scene: SharedScene,
+        composer: Composer,
         view: SharedView,
         frames: Arc<Latest<Composed>>,
         proxy: EventLoopProxy<UserEvent>,
     ) -> Self {
-        Self {
-            assets,
-            scene,
-            view,
-            frames,
-            proxy,
-            params: ReconstructParams::default(),
-            gbuffer: None,
-            reconstructor: None,
-        }
-    }
-
-    /// The G-buffer of `state`, recomputed (and the shared render scene updated) when its
-    /// version changed.
-    fn gbuffer(&mut self, state: &SceneState) -> Result<&GBuffer, SinkError> {
-        if self.gbuffer.as_ref().is_none_or(|(v, _)| *v != state.version) {
-            let mut guard = self.scene.write().unwrap_or_else(|p| p.into_inner());
-            match guard.as_mut() {
-                Some(scene) => scene.set_state(state),
-                None => RenderScene::new(Arc::clone(&self.assets), state).map(|s| *guard = Some(s)),
-            }
-            .map_err(|e| SinkError::Other(e.to_string()))?;
-            let scene = guard.as_ref().ok_or_else(|| SinkError::Other("no render scene".into()))?;
-            let res = state.resolution;
-            let samples: Vec<_> = (0..res.pixels() as u32)
-                .into_par_iter()
-                .map(|p| render::primary_hit(scene, p))
-                .collect();
-            let mut g = GBuffer::empty(
-                res.width,
-                res.height,
-                reconstruct::scene_scale(state, &self.assets),
-            );
-            for (i, s) in samples.iter().enumerate() {
-                g.normal[i] = s.normal;
-                g.position[i] = s.position;
-                g.albedo[i] = s.albedo;
-                g.emission[i] = s.emission;
-                g.object[i] = s.object;
-            }
-            self.gbuffer = Some((state.version, g));
-        }
-        match &self.gbuffer {
-            Some((_, g)) => Ok(g),
-            None => Err(SinkError::Other("no G-buffer".into())),
-        }
+        Self { composer, view, frames, proxy }
     }
 
     fn compose(&mut self, frame: &ShownFrame) -> Result<Composed, SinkError> {
-        let res = frame.state.resolution;
-        if self.reconstructor.is_none() {
-            let r = Reconstructor::new(res.width, res.height, self.params, Backend::Cpu)
-                .map_err(|e| SinkError::Other(e.to_string()))?;
-            self.reconstructor = Some(r);
-        }
-        let exposure = self.params.exposure;
         let view =
             View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
-        self.gbuffer(&frame.state)?;
-        let (Some((_, g)), Some(r)) = (&self.gbuffer, &mut self.reconstructor) else {
-            return Err(SinkError::Other("reconstruction not ready".into()));
-        };
-        let inputs = FrameInputs {
-            frame: frame.frame,
-            state_version: frame.state.version,
-            radiance: &frame.current,
-            mask: &frame.current_mask,
-            gbuffer: g,
-        };
-        // Reconstruct every frame, whatever the view, so that the history stays complete.
-        let out = r.reconstruct(&inputs).map_err(|e| SinkError::Other(e.to_string()))?;
-        let status = status_of(frame, r.describe());
-        let (picture, linear) = match view {
-            View::Final => (
-                Picture::from_pixels(res.width, res.height, &out.display),
-                Some(Arc::new(out.colour)),
-            ),
-            other => {
-                let planes = ViewInputs {
-                    width: res.width,
-                    height: res.height,
-                    radiance: &frame.current,
-                    mask: &frame.current_mask,
-                    albedo: &g.albedo,
-                    emission: &g.emission,
-                    normal: &g.normal,
-                };
-                (
-                    picture::diagnostic(other, &planes, |c| {
-                        reconstruct::tonemap::to_rgba8(c, exposure)
-                    }),
-                    None,
-                )
-            }
-        };
-        let picture = picture
+        let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.to_string()))?;
+        let picture = Picture::from_pixels(c.width, c.height, &c.rgba)
             .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
-        Ok(Composed { picture, linear, status })
+        let status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
+        Ok(Composed { picture, linear: c.linear.map(Arc::new), status })
     }
 }
 
@@ -320,11 +224,11 @@ impl Session for MasterSession {
     }
 
     fn set_pacing(&mut self, pacing: PacingChoice) {
-        // The master has no run-time pacing message yet; say so instead of pretending.
-        tracing::warn!(
-            ?pacing,
-            "changing the pacing at run time is not supported by the master yet"
-        );
+        let Some(h) = &self.handle else { return };
+        match h.set_pacing(pacing.into()) {
+            Ok(()) => self.pacing = pacing,
+            Err(err) => tracing::warn!(?pacing, cause = %err, "pacing not changed"),
+        }
     }
 
     fn set_view(&mut self, view: View) {
@@ -334,12 +238,22 @@ impl Session for MasterSession {
 
     fn pick(&self, x: f32, y: f32) -> Option<u32> {
         let guard = self.scene.read().unwrap_or_else(|p| p.into_inner());
-        render::pick(guard.as_ref()?, x, y)
+        render::pick(&guard, x, y)
     }
 
     fn refresh_status(&mut self, status: &mut StatusView) {
-        if let Some(stats) = self.handle.as_ref().and_then(|h| h.stats()) {
-            status.workers.clear();
+        let Some(h) = &self.handle else { return };
+        status.workers = h
+            .workers()
+            .into_iter()
+            .map(|w| WorkerRow {
+                name: w.name,
+                cores: w.cores,
+                jobs_per_second: w.jobs_per_second as f32,
+                last_seen_s: w.last_seen.as_secs_f32(),
+            })
+            .collect();
+        if let Some(stats) = h.stats() {
             if status.frame == 0 {
                 status.frame = stats.frame;
             }
@@ -373,43 +287,49 @@ impl Session for MasterSession {
     }
 }
 
+/// What a windowed master starts with.
+pub struct MasterStart {
+    pub config: gridlight_actors::master::MasterConfig,
+    pub state: SceneState,
+    pub store: gridlight_actors::asset_store::AssetStore,
+    pub composer: Composer,
+    /// Interaction script played from the start.
+    pub script: Option<Vec<(Duration, Edit)>>,
+    /// Called with the address workers should use, once the master accepts connections.
+    pub on_listening: Box<dyn FnOnce(SocketAddr) -> Result<(), String>>,
+    /// Called after the master stopped (e.g. to stop the demo's local workers).
+    pub on_shutdown: Option<Box<dyn FnOnce()>>,
+}
+
 /// Starts a master whose frames go to a window and runs the window on this thread until
-/// it closes; closing it stops the master, then calls `on_shutdown` (e.g. to stop the
-/// demo's local workers). The entry point for the windowed `gridlight demo`/`master`.
+/// it closes; closing it stops the master, then calls `on_shutdown`. The entry point for
+/// the windowed `gridlight demo`/`master`.
 pub fn run_master_window(
     options: super::WindowOptions,
-    config: gridlight_actors::master::MasterConfig,
-    state: SceneState,
-    assets: Arc<Assets>,
-    store: gridlight_actors::asset_store::AssetStore,
-    on_shutdown: Option<Box<dyn FnOnce()>>,
+    start: MasterStart,
 ) -> Result<(), super::WindowError> {
     let script_path = options.shot_dir.join("gridlight-session.toml");
-    let pacing = match config.pacing {
-        gridlight_actors::wait_heuristic::Pacing::Heuristic(h) => PacingChoice::Heuristic {
-            q_min: h.q_min as f32,
-            q_max: h.q_max as f32,
-            i_min: h.i_min as f32,
-            i_max: h.i_max as f32,
-        },
-        gridlight_actors::wait_heuristic::Pacing::FixedFps(fps) => PacingChoice::FixedFps(fps),
-    };
+    let MasterStart { config, state, store, composer, script, on_listening, on_shutdown } = start;
+    let pacing = PacingChoice::from(config.pacing);
     super::run(options, move |proxy, frames| {
-        let scene: SharedScene = Arc::new(RwLock::new(None));
+        let scene = composer.scene();
         let view: SharedView = Arc::new(AtomicU8::new(0));
-        let sink = WindowSink::new(assets, Arc::clone(&scene), Arc::clone(&view), frames, proxy);
+        let sink = WindowSink::new(composer, Arc::clone(&view), frames, proxy);
         let handle = gridlight_actors::master::start(config, state.clone(), store, Box::new(sink))
             .map_err(|e| format!("cannot start the master: {e}"))?;
-        tracing::info!(address = %handle.local_addr(), "master listening");
-        Ok(Box::new(MasterSession::new(
-            handle,
-            state,
-            pacing,
-            scene,
-            view,
-            script_path,
-            on_shutdown,
-        )))
+        let mut session =
+            MasterSession::new(handle, state, pacing, scene, view, script_path, on_shutdown);
+        let addr = session.handle.as_ref().map(|h| h.local_addr());
+        if let Some(addr) = addr {
+            if let Err(e) = on_listening(addr) {
+                session.shutdown();
+                return Err(e);
+            }
+        }
+        if let (Some(script), Some(h)) = (script, &session.handle) {
+            h.play_script(script);
+        }
+        Ok(Box::new(session))
     })
 }
 

@@ -1,0 +1,142 @@
+//! The table of connected workers the window's status panel lists: name, cores, jobs per
+//! second, last seen. Connection actors write their own row (join, each accepted result,
+//! end); readers get a snapshot. Rows exist only for live connections, so the table is
+//! bounded by the connection cap.
+
+use std::collections::BTreeMap;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use crate::frame_table::ConnId;
+
+/// Window over which a worker's job rate is measured.
+pub const RATE_WINDOW: Duration = Duration::from_secs(2);
+
+/// One connected worker as the status panel shows it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct WorkerInfo {
+    pub id: ConnId,
+    pub name: String,
+    pub cores: u32,
+    /// Results that came back over the last [`RATE_WINDOW`], per second.
+    pub jobs_per_second: f64,
+    /// Results since it joined.
+    pub jobs: u64,
+    /// Time since its last message.
+    pub last_seen: Duration,
+}
+
+#[derive(Debug)]
+struct Row {
+    name: String,
+    cores: u32,
+    jobs: u64,
+    /// Jobs counted at the start of the current rate window, and when it began.
+    window_jobs: u64,
+    window_start: Instant,
+    /// Rate over the last complete window.
+    rate: f64,
+    last_seen: Instant,
+}
+
+/// Live workers by connection.
+#[derive(Debug, Default)]
+pub struct WorkerTable {
+    rows: Mutex<BTreeMap<ConnId, Row>>,
+}
+
+impl WorkerTable {
+    /// A worker passed the handshake.
+    pub fn joined(&self, id: ConnId, name: &str, cores: u32) {
+        let now = Instant::now();
+        let row = Row {
+            name: name.to_string(),
+            cores,
+            jobs: 0,
+            window_jobs: 0,
+            window_start: now,
+            rate: 0.0,
+            last_seen: now,
+        };
+        self.lock().insert(id, row);
+    }
+
+    /// A message came from the worker; `results` of them were accepted results.
+    pub fn heard(&self, id: ConnId, results: u64) {
+        let now = Instant::now();
+        if let Some(row) = self.lock().get_mut(&id) {
+            row.last_seen = now;
+            row.jobs += results;
+            let span = now - row.window_start;
+            if span >= RATE_WINDOW {
+                row.rate = (row.jobs - row.window_jobs) as f64 / span.as_secs_f64();
+                row.window_jobs = row.jobs;
+                row.window_start = now;
+            }
+        }
+    }
+
+    /// The connection ended.
+    pub fn left(&self, id: ConnId) {
+        self.lock().remove(&id);
+    }
+
+    /// A snapshot, by connection id.
+    pub fn list(&self) -> Vec<WorkerInfo> {
+        let now = Instant::now();
+        self.lock()
+            .iter()
+            .map(|(&id, r)| {
+                // A worker silent for a whole window has a rate of zero, not its old one.
+                let silent = now - r.last_seen >= RATE_WINDOW;
+                WorkerInfo {
+                    id,
+                    name: r.name.clone(),
+                    cores: r.cores,
+                    jobs_per_second: if silent { 0.0 } else { r.rate },
+                    jobs: r.jobs,
+                    last_seen: now - r.last_seen,
+                }
+            })
+            .collect()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, BTreeMap<ConnId, Row>> {
+        self.rows.lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_follow_joins_results_and_departures() {
+        let t = WorkerTable::default();
+        t.joined(3, "a", 4);
+        t.joined(1, "b", 1);
+        t.heard(3, 2);
+        t.heard(9, 5); // unknown connection: ignored
+        let list = t.list();
+        assert_eq!(list.iter().map(|w| w.id).collect::<Vec<_>>(), vec![1, 3]);
+        assert_eq!((list[1].name.as_str(), list[1].cores, list[1].jobs), ("a", 4, 2));
+        t.left(3);
+        assert_eq!(t.list().len(), 1);
+    }
+
+    #[test]
+    fn the_rate_is_measured_over_a_window() {
+        let t = WorkerTable::default();
+        t.joined(1, "a", 1);
+        {
+            let mut rows = t.lock();
+            let row = rows.get_mut(&1).unwrap();
+            row.window_start -= RATE_WINDOW * 2; // as if it joined 4 s ago
+        }
+        t.heard(1, 8);
+        let rate = t.list()[0].jobs_per_second;
+        assert!((1.9..=2.1).contains(&rate), "8 jobs over ~4 s, got {rate}");
+    }
+}
