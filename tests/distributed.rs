@@ -16,9 +16,8 @@ use std::time::{Duration, Instant};
 
 use gridlight::worker::render::null_radiance;
 use gridlight_actors::codec::{to_frame, WorkerCodec};
-use gridlight_actors::protocol::{
-    JobResult, MasterMsg, PackedRadiance, WorkerMsg, PROTOCOL_VERSION,
-};
+use gridlight_actors::integrity::ResultKey;
+use gridlight_actors::protocol::{MasterMsg, PackedRadiance, WorkerMsg, PROTOCOL_VERSION};
 use serde_json::Value;
 use tokio_util::codec::Decoder;
 
@@ -385,13 +384,15 @@ struct Raw {
     stream: TcpStream,
     codec: WorkerCodec,
     buf: bytes::BytesMut,
+    /// The result key of this connection, once `join` saw the nonce.
+    key: Option<ResultKey>,
 }
 
 impl Raw {
     fn connect(addr: SocketAddr) -> Raw {
         let stream = TcpStream::connect(addr).unwrap();
         stream.set_read_timeout(Some(Duration::from_secs(15))).unwrap();
-        Raw { stream, codec: WorkerCodec::default(), buf: bytes::BytesMut::new() }
+        Raw { stream, codec: WorkerCodec::default(), buf: bytes::BytesMut::new(), key: None }
     }
 
     fn send(&mut self, msg: &WorkerMsg) {
@@ -435,6 +436,7 @@ impl Raw {
             panic!("no challenge")
         };
         assert!(auth_required);
+        self.key = Some(ResultKey::derive(Some(secret), &nonce));
         self.send(&WorkerMsg::Auth { mac: Some(gridlight_actors::auth::mac(secret, &nonce)) });
         self.recv().expect("an answer to Auth")
     }
@@ -473,13 +475,10 @@ fn bad_peers_are_rejected_with_their_reason_and_the_master_goes_on() {
 
     let mut c = Raw::connect(master.addr);
     assert!(matches!(c.join(b"open sesame"), MasterMsg::Welcome { .. }));
-    c.send(&WorkerMsg::Result(JobResult {
-        frame: 1,
-        set: 3,
-        state_version: 1,
-        radiance: PackedRadiance::Rgb9e5(vec![0; (WIDTH * HEIGHT / SETS) as usize]),
-        render_us: 1,
-    }));
+    // Correctly tagged, so that it is refused for what it claims, not for its tag.
+    let key = c.key.clone().expect("joined");
+    let radiance = PackedRadiance::Rgb9e5(vec![0; (WIDTH * HEIGHT / SETS) as usize]);
+    c.send(&WorkerMsg::Result(key.seal(1, 3, 1, radiance, 1)));
     reasons.insert("unasked result", c.rejection());
 
     let expect = [

@@ -221,13 +221,8 @@ fn cases() -> Vec<Case> {
             kind: "phase",
             expect: Expect::Rejected("unexpected Result"),
             act: |p, _| {
-                p.send(&WorkerMsg::Result(JobResult {
-                    frame: 1,
-                    set: 0,
-                    state_version: 1,
-                    radiance: PackedRadiance::Rgb9e5(vec![0; 4]),
-                    render_us: 0,
-                }))
+                let msg = p.result(1, 0, 1, PackedRadiance::Rgb9e5(vec![0; 4]));
+                p.send(&msg)
             },
         },
         Case {
@@ -261,13 +256,26 @@ fn cases() -> Vec<Case> {
             act: |p, _| {
                 let (frame, set, state_version) = first_job(p);
                 let radiance = pack(&[Vec3::ONE; 1]).expect("pack");
-                p.send(&WorkerMsg::Result(JobResult {
-                    frame,
-                    set,
-                    state_version,
-                    radiance,
-                    render_us: 0,
-                }));
+                let msg = p.result(frame, set, state_version, radiance);
+                p.send(&msg);
+            },
+        },
+        Case {
+            name: "result whose radiance was altered after it was tagged",
+            kind: "corrupt",
+            expect: Expect::Rejected("integrity check"),
+            act: |p, _| {
+                let (frame, set, state_version) = first_job(p);
+                let n = table().set_len(set);
+                let radiance = pack(&vec![Vec3::splat(frame_value(frame)); n]).expect("pack");
+                let WorkerMsg::Result(mut r) = p.result(frame, set, state_version, radiance) else {
+                    unreachable!("Peer::result builds a result")
+                };
+                // One mantissa bit of one pixel, as a bad link would flip it: still a
+                // valid RGB9E5 word, so only the tag can tell.
+                let PackedRadiance::Rgb9e5(words) = &mut r.radiance;
+                words[n / 2] ^= 1 << 3;
+                p.send(&WorkerMsg::Result(r));
             },
         },
         Case {

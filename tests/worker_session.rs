@@ -75,6 +75,9 @@ async fn recv(peer: &mut Peer) -> WorkerMsg {
     }
 }
 
+/// The nonce this scripted master challenges with.
+const NONCE: [u8; 32] = [7; 32];
+
 async fn accept(listener: &TcpListener) -> Peer {
     let (socket, _) =
         tokio::time::timeout(STEP, listener.accept()).await.expect("worker connected").unwrap();
@@ -87,7 +90,7 @@ async fn handshake(peer: &mut Peer, secret: Option<&[u8]>, assets: Vec<AssetEntr
         panic!("expected Hello")
     };
     assert_eq!(protocol, PROTOCOL_VERSION);
-    let nonce = [7u8; 32];
+    let nonce = NONCE;
     peer.send(MasterMsg::Challenge { nonce, auth_required: secret.is_some() }).await.unwrap();
     let WorkerMsg::Auth { mac } = recv(peer).await else { panic!("expected Auth") };
     match secret {
@@ -149,6 +152,8 @@ async fn a_worker_authenticates_fetches_assets_renders_and_reconnects() {
             WorkerMsg::Result(r) => {
                 assert_eq!((r.frame, r.state_version), (11, 3));
                 assert_eq!(r.radiance.len(), table.set_len(r.set));
+                let key = gridlight_actors::integrity::ResultKey::derive(Some(secret), &NONCE);
+                assert!(key.verify(&r), "the result is not tagged with this connection's key");
                 let gridlight_actors::protocol::PackedRadiance::Rgb9e5(px) = &r.radiance;
                 assert!(px.iter().all(|p| decode_rgb9e5(*p) == worker::render::null_radiance(11)));
                 answered.push(r.set);

@@ -93,7 +93,10 @@ impl Handler<JobsHandedOut> for Assembler {
     fn handle(&mut self, msg: JobsHandedOut, ctx: &mut Context<Self>) {
         self.guarded(ctx, |a| {
             for (frame, set) in msg.jobs {
-                a.table.handed_out(frame, set, msg.conn);
+                if a.table.handed_out(frame, set, msg.conn) {
+                    tracing::error!(frame, set, "a job was handed out twice");
+                    Counters::add(&a.counters.jobs_handed_twice, 1);
+                }
             }
         });
     }

@@ -175,6 +175,7 @@ mod tests {
             state_version: 2,
             radiance: PackedRadiance::Rgb9e5(vec![1, 2, 3]),
             render_us: 99,
+            tag: [7; 32],
         });
         let bytes = to_frame(&msg).expect("encode");
         let mut codec = MasterCodec::new();
@@ -234,6 +235,7 @@ mod tests {
                 state_version: 3,
                 radiance: PackedRadiance::Rgb9e5(vec![0xdead_beef; n]),
                 render_us: 4,
+                tag: [0; 32],
             })
         };
         let (small, big) =

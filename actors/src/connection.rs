@@ -4,7 +4,8 @@
 //! configuration and the asset manifest, serves asset chunks (manifest hashes only),
 //! turns the worker's `Ready` credits into requests to the scheduler (never more than
 //! `k` jobs held), sends each state version before the first job naming it, validates
-//! every result against the jobs it holds and forwards it to the frame assembler, and
+//! every result (its integrity tag first, then against the jobs it holds) and forwards
+//! it to the frame assembler, and
 //! keeps the link alive with heartbeats and a silence timeout. Any protocol violation
 //! ends this connection only, after a `Rejected` that names the problem; every log
 //! line names the peer. The jobs it held are never handed out again.
@@ -24,6 +25,7 @@ use crate::auth;
 use crate::codec::{MasterCodec, ProtocolError};
 use crate::counted_io::CountedWrite;
 use crate::frame_table::ConnId;
+use crate::integrity::ResultKey;
 use crate::protocol::{
     AssetHash, FrameNo, JobResult, MasterMsg, SetNo, WorkerMsg, ASSET_CHUNK_LEN, PROTOCOL_VERSION,
 };
@@ -79,8 +81,8 @@ enum Phase {
     Hello,
     /// `Challenge` sent with this nonce; waiting for `Auth`.
     Auth { nonce: [u8; 32] },
-    /// Welcomed: assets and jobs.
-    Work,
+    /// Welcomed: assets and jobs; results are tagged with this connection's key.
+    Work { key: ResultKey },
     /// `Rejected` sent; waiting for it to drain.
     Closing,
 }
@@ -214,7 +216,7 @@ impl WriteHandler<ProtocolError> for Connection {
 impl Handler<JobsAssigned> for Connection {
     type Result = ();
     fn handle(&mut self, msg: JobsAssigned, _: &mut Context<Self>) {
-        if !matches!(self.phase, Phase::Work) {
+        if !matches!(self.phase, Phase::Work { .. }) {
             return; // closing: these jobs are lost like any other, never redone
         }
         for job in msg.0 {
@@ -283,7 +285,8 @@ impl Connection {
                         return self.reject(why.to_owned(), ctx);
                     }
                 }
-                self.phase = Phase::Work;
+                let key = ResultKey::derive(self.config.secret.as_deref(), nonce);
+                self.phase = Phase::Work { key };
                 self.welcomed = true;
                 Counters::add(&self.counters.workers, 1);
                 self.counters.workers_table.joined(self.id, &self.name, self.cores);
@@ -294,9 +297,22 @@ impl Connection {
                     assets: self.config.assets.manifest().to_vec(),
                 });
             }
-            (Phase::Work, WorkerMsg::AssetRequest { hash }) => self.serve_asset(hash, ctx),
-            (Phase::Work, WorkerMsg::Ready { credits }) => self.grant(credits, ctx),
-            (Phase::Work, WorkerMsg::Result(result)) => self.on_result(result, ctx),
+            (Phase::Work { .. }, WorkerMsg::AssetRequest { hash }) => self.serve_asset(hash, ctx),
+            (Phase::Work { .. }, WorkerMsg::Ready { credits }) => self.grant(credits, ctx),
+            (Phase::Work { key }, WorkerMsg::Result(result)) => {
+                // Checked before anything else reads the result: a corrupted frame or
+                // set number must not be mistaken for a stale or foreign result.
+                if !key.verify(&result) {
+                    return self.reject(
+                        format!(
+                            "result for frame {} set {} failed its integrity check (payload corrupted or forged)",
+                            result.frame, result.set
+                        ),
+                        ctx,
+                    );
+                }
+                self.on_result(result, ctx)
+            }
             (_, WorkerMsg::Heartbeat) => {}
             (phase, msg) => {
                 let what = kind(&msg);
@@ -424,7 +440,9 @@ impl Connection {
             let secs = silent.as_secs_f32();
             return self.reject(format!("no message from the worker for {secs:.1} s"), ctx);
         }
-        if matches!(self.phase, Phase::Work) && self.last_sent.elapsed() >= self.config.heartbeat {
+        if matches!(self.phase, Phase::Work { .. })
+            && self.last_sent.elapsed() >= self.config.heartbeat
+        {
             self.send(MasterMsg::Heartbeat);
         }
     }
@@ -475,7 +493,7 @@ fn phase_name(phase: &Phase) -> &'static str {
     match phase {
         Phase::Hello => "hello",
         Phase::Auth { .. } => "authentication",
-        Phase::Work => "work",
+        Phase::Work { .. } => "work",
         Phase::Closing => "closing",
     }
 }

@@ -105,10 +105,13 @@ impl FrameTable {
         });
     }
 
-    /// The scheduler handed `(frame, set)` to `conn`.
-    pub fn handed_out(&mut self, frame: FrameNo, set: SetNo, conn: ConnId) {
-        if let Some(h) = self.frames.get_mut(&frame).and_then(|s| s.holder.get_mut(set as usize)) {
-            *h = Some(conn);
+    /// The scheduler handed `(frame, set)` to `conn`. True when that set of that frame
+    /// had already been handed out: a job done twice, which the scheduler must never do
+    /// (no redundancy: at most S jobs per frame).
+    pub fn handed_out(&mut self, frame: FrameNo, set: SetNo, conn: ConnId) -> bool {
+        match self.frames.get_mut(&frame).and_then(|s| s.holder.get_mut(set as usize)) {
+            Some(h) => h.replace(conn).is_some(),
+            None => false,
         }
     }
 
@@ -240,7 +243,8 @@ mod tests {
     fn accepts_a_handed_out_set_once() {
         let mut t = table();
         t.open(0, state(3));
-        t.handed_out(0, 1, 7);
+        assert!(!t.handed_out(0, 1, 7));
+        assert!(!t.handed_out(0, 2, 7), "another set of the same frame is no re-hand-out");
         assert_eq!(t.accept(7, 0, 1, 3, &radiance(2.0)), Verdict::Accepted { back: 1, total: 4 });
         assert_eq!(t.accept(7, 0, 1, 3, &radiance(2.0)), Verdict::Duplicate);
         let closed = t.close(0).expect("open frame");
@@ -249,6 +253,15 @@ mod tests {
         assert_eq!(covered.len(), 16);
         assert!(covered.iter().all(|p| closed.radiance[*p] == Vec3::splat(2.0)));
         assert_eq!(t.dropped(), Dropped { late: 0, duplicate: 1, unknown: 0 });
+    }
+
+    #[test]
+    fn a_second_hand_out_of_one_set_is_reported() {
+        let mut t = table();
+        t.open(0, state(3));
+        assert!(!t.handed_out(0, 1, 7));
+        assert!(t.handed_out(0, 1, 8), "a job handed out twice went unnoticed");
+        assert!(!t.handed_out(9, 1, 7), "a frame not in the table cannot be judged");
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //!
 //! # Layout
 //! - Wire: [`protocol`] (messages and invariants), [`codec`] (length-prefixed
-//!   MessagePack), [`auth`] (HMAC challenge), [`packing`] (RGB9E5), [`sets`] (pixel sets).
+//!   MessagePack), [`auth`] (HMAC challenge), [`integrity`] (per-result tags),
+//!   [`packing`] (RGB9E5), [`sets`] (pixel sets).
 //! - Values: [`state`] (scene state), [`edit`] and [`script`] (changes to it).
 //! - Actors, one per file: [`listener`], [`connection`], [`scheduler`], [`assembler`],
 //!   [`display`], [`scene_holder`]; their pure logic: [`job_queue`], [`frame_table`],
@@ -25,6 +26,7 @@ pub mod counted_io;
 pub mod display;
 pub mod edit;
 pub mod frame_table;
+pub mod integrity;
 pub mod job_queue;
 pub mod listener;
 pub mod master;

@@ -29,6 +29,16 @@
 //!    and whose radiance holds exactly one pixel per pixel of the set (pixel indices
 //!    never travel: both sides derive them from `(resolution, sets, partition, set)`).
 //!
+//! # Result integrity
+//! Every [`JobResult`] carries `tag` = HMAC-SHA256 under a per-connection key over
+//! (frame, set, state version, radiance); see [`crate::integrity`]. The key is derived
+//! from the shared secret (empty without one) and this connection's `Challenge` nonce,
+//! so it never travels and differs per connection. The master verifies the tag before
+//! any other check of a result; a mismatch is rejected like any bad input (kind
+//! `corrupt`), so a corrupted payload never reaches an image. With a secret the tag also
+//! authenticates: a man in the middle cannot alter or forge pixels. Without one it is a
+//! checksum against accidental corruption only. `render_us` is advisory and not covered.
+//!
 //! Either side sends [`WorkerMsg::Heartbeat`]/[`MasterMsg::Heartbeat`] when it has
 //! been quiet for [`HEARTBEAT_INTERVAL`]; a peer silent for [`PEER_TIMEOUT`] is gone.
 //!
@@ -44,7 +54,8 @@ use crate::state::{SceneState, StateVersion};
 
 /// Bumped on every incompatible change of any message below.
 /// 2: RGB9E5 radiance travels as one MessagePack `bin` of little-endian `u32`s.
-pub const PROTOCOL_VERSION: u32 = 2;
+/// 3: every result carries an integrity tag (`JobResult::tag`).
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
@@ -189,6 +200,8 @@ pub struct JobResult {
     pub radiance: PackedRadiance,
     /// Time spent rendering, in microseconds.
     pub render_us: u64,
+    /// [`crate::integrity::ResultKey::tag`] over the fields above (`render_us` excepted).
+    pub tag: [u8; crate::integrity::TAG_LEN],
 }
 
 /// Messages from the master to a worker.

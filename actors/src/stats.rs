@@ -28,6 +28,9 @@ pub struct Counters {
     pub results_accepted: AtomicU64,
     /// Jobs handed out by the scheduler.
     pub jobs_handed_out: AtomicU64,
+    /// Hand-outs of a (frame, set) that had been handed out before; the no-redundancy
+    /// invariant (at most S jobs per frame) says this stays 0.
+    pub jobs_handed_twice: AtomicU64,
     /// Connections ended with a protocol error (rejections included).
     pub connections_rejected: AtomicU64,
     /// Panics contained at an actor boundary.
@@ -66,7 +69,8 @@ impl Counters {
 
 /// The kind of a connection's rejection, from the reason it was sent (fault reports).
 pub fn rejection_kind(reason: &str) -> &'static str {
-    const KINDS: [(&str, &str); 12] = [
+    const KINDS: [(&str, &str); 13] = [
+        ("integrity check", "corrupt"),
         ("protocol version", "version"),
         ("authentication", "auth"),
         ("empty frame", "empty_frame"),
@@ -122,6 +126,12 @@ mod tests {
         assert_eq!(rejection_kind("bad frame: undecodable message: x"), "bad_frame");
         assert_eq!(rejection_kind("authentication failed: wrong shared secret"), "auth");
         assert_eq!(rejection_kind("something new"), "other");
+        assert_eq!(
+            rejection_kind(
+                "result for frame 3 set 1 failed its integrity check (payload corrupted or forged)"
+            ),
+            "corrupt"
+        );
         let c = Counters::default();
         c.note_rejection("auth");
         c.note_rejection("auth");

@@ -137,15 +137,17 @@ fn worker_msg() -> impl Strategy<Value = WorkerMsg> {
             any::<u32>(),
             any::<u64>(),
             prop::collection::vec(any::<u32>(), 0..300),
-            any::<u64>()
+            any::<u64>(),
+            hash(),
         )
-            .prop_map(|(frame, set, state_version, px, render_us)| WorkerMsg::Result(
+            .prop_map(|(frame, set, state_version, px, render_us, tag)| WorkerMsg::Result(
                 JobResult {
                     frame,
                     set,
                     state_version,
                     radiance: PackedRadiance::Rgb9e5(px),
                     render_us,
+                    tag,
                 }
             )),
         Just(WorkerMsg::Heartbeat),

@@ -10,6 +10,7 @@ use bytes::BytesMut;
 use glam::{Quat, Vec3};
 use gridlight_actors::auth;
 use gridlight_actors::codec::{to_frame, WorkerCodec};
+use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::master::{MasterConfig, ShownFrame, SinkError};
 use gridlight_actors::packing::pack;
 use gridlight_actors::protocol::*;
@@ -97,6 +98,8 @@ pub struct Peer {
     stream: TcpStream,
     codec: WorkerCodec,
     buf: BytesMut,
+    /// The connection's result key, once the handshake saw the nonce.
+    key: Option<ResultKey>,
 }
 
 impl Peer {
@@ -104,7 +107,7 @@ impl Peer {
         let stream = TcpStream::connect(addr).expect("connect");
         stream.set_read_timeout(Some(Duration::from_secs(30))).expect("timeout");
         stream.set_nodelay(true).expect("nodelay");
-        Self { stream, codec: WorkerCodec::new(), buf: BytesMut::new() }
+        Self { stream, codec: WorkerCodec::new(), buf: BytesMut::new(), key: None }
     }
 
     /// This peer's own address (what the master's logs name).
@@ -172,7 +175,11 @@ impl Peer {
             cores: 1,
         });
         let nonce = match self.recv_non_heartbeat()? {
-            MasterMsg::Challenge { nonce, .. } => nonce,
+            MasterMsg::Challenge { nonce, auth_required } => {
+                // As a real worker: the secret keys result tags only when the master has one.
+                self.key = Some(ResultKey::derive(secret.filter(|_| auth_required), &nonce));
+                nonce
+            }
             MasterMsg::Rejected { reason } => return Err(reason),
             m => return Err(format!("unexpected {m:?}")),
         };
@@ -211,13 +218,21 @@ impl Peer {
     ) -> bool {
         let n = table.set_len(set);
         let radiance = pack(&vec![Vec3::splat(value); n]).expect("pack");
-        self.try_send(&WorkerMsg::Result(JobResult {
-            frame,
-            set,
-            state_version: version,
-            radiance,
-            render_us: 1,
-        }))
+        let msg = self.result(frame, set, version, radiance);
+        self.try_send(&msg)
+    }
+
+    /// A result tagged with this connection's key, as an honest worker sends it (before
+    /// the handshake: a key no master holds).
+    pub fn result(
+        &self,
+        frame: FrameNo,
+        set: SetNo,
+        version: StateVersion,
+        radiance: PackedRadiance,
+    ) -> WorkerMsg {
+        let key = self.key.clone().unwrap_or_else(|| ResultKey::derive(None, &[0; 32]));
+        WorkerMsg::Result(key.seal(frame, set, version, radiance, 1))
     }
 }
 

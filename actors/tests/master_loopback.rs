@@ -122,13 +122,8 @@ fn a_result_with_the_wrong_pixel_count_is_rejected() {
     p.send(&WorkerMsg::Ready { credits: 1 });
     let (frame, set, version, _) = p.next_job().expect("job");
     let radiance = gridlight_actors::packing::pack(&[Vec3::ONE; 3]).expect("pack");
-    p.send(&WorkerMsg::Result(JobResult {
-        frame,
-        set,
-        state_version: version,
-        radiance,
-        render_us: 0,
-    }));
+    let msg = p.result(frame, set, version, radiance);
+    p.send(&msg);
     let reason = p.expect_rejected();
     assert!(reason.contains("pixels"), "{reason}");
 }

@@ -24,7 +24,7 @@ use gridlight_actors::state::{
 use gridlight_actors::stats::Counters;
 use thiserror::Error;
 
-use super::invariants::{lock, Checker, CheckingSink, Limits, SharedChecker};
+use super::invariants::{lock, Checker, CheckingSink, Limits, QSummary, SharedChecker};
 use super::proxy::{Mode, Proxy};
 use crate::worker::render::null_radiance;
 
@@ -81,6 +81,57 @@ impl HarnessConfig {
     }
 }
 
+/// One fault of issue 6's list, as the soak and the tests inject it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Fault {
+    /// SIGKILL the `i`-th worker process (modulo the count).
+    KillWorker(usize),
+    /// SIGSTOP the `i`-th running worker (thawed by [`Harness::undo`]).
+    FreezeWorker(usize),
+    /// Start one more worker process.
+    SpawnWorker,
+    /// A panic inside a core actor of the master; its supervisor restarts it.
+    PanicActor(ActorKind),
+    /// End the `i`-th connection actor abruptly.
+    KillConnection(usize),
+    /// A panic inside the `i`-th connection actor.
+    PanicConnection(usize),
+    /// Set the proxy's mode for the proxied workers (undone by [`Harness::undo`]).
+    Link(Mode),
+    /// Stop the master and start a new one on the same address.
+    RestartMaster,
+}
+
+impl Fault {
+    /// One fault of every kind, in an order that keeps the grid alive between them.
+    pub fn every_kind() -> Vec<Fault> {
+        let mut all = vec![Fault::SpawnWorker, Fault::KillWorker(0), Fault::FreezeWorker(0)];
+        all.extend(
+            [
+                ActorKind::Scheduler,
+                ActorKind::Assembler,
+                ActorKind::Display,
+                ActorKind::SceneHolder,
+            ]
+            .map(Fault::PanicActor),
+        );
+        all.extend([Fault::KillConnection(0), Fault::PanicConnection(1)]);
+        all.extend(
+            [
+                Mode::Delay(Duration::from_millis(100)),
+                Mode::Drop,
+                Mode::Truncate,
+                Mode::Corrupt,
+                Mode::Stall,
+                Mode::Cut,
+            ]
+            .map(Fault::Link),
+        );
+        all.push(Fault::RestartMaster);
+        all
+    }
+}
+
 /// One worker process.
 struct WorkerProc {
     child: Child,
@@ -103,7 +154,11 @@ pub struct HarnessReport {
     pub violations: Vec<String>,
     pub results_accepted: u64,
     pub jobs_handed_out: u64,
+    /// (frame, set) pairs handed out a second time; the no-redundancy invariant wants 0.
+    pub jobs_handed_twice: u64,
     pub panics_contained: u64,
+    /// Frames shown and their mean Q_t by connected workers (the resource curve).
+    pub q_by_workers: BTreeMap<u64, QSummary>,
 }
 
 /// A master, its workers and the proxy.
@@ -123,10 +178,11 @@ pub struct Harness {
     spawned: u64,
 }
 
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct Totals {
     accepted: u64,
     handed: u64,
+    handed_twice: u64,
     panics: u64,
     dropped: BTreeMap<String, u64>,
     rejected: BTreeMap<String, u64>,
@@ -347,6 +403,49 @@ impl Harness {
         Ok(())
     }
 
+    /// Injects one fault; true when it lasts until [`Harness::undo`] (a link fault, a
+    /// freeze). A fault with nothing to act on (no worker, no connection) is not counted.
+    pub fn inject(&mut self, fault: Fault) -> Result<bool, HarnessError> {
+        Ok(match fault {
+            Fault::KillWorker(i) => {
+                self.kill_worker(i);
+                false
+            }
+            Fault::FreezeWorker(i) => self.freeze_worker(i),
+            Fault::SpawnWorker => {
+                self.spawn_worker()?;
+                self.fault("spawn_worker");
+                false
+            }
+            Fault::PanicActor(kind) => {
+                self.panic_actor(kind);
+                false
+            }
+            Fault::KillConnection(i) => {
+                self.fault_connection(i, false);
+                false
+            }
+            Fault::PanicConnection(i) => {
+                self.fault_connection(i, true);
+                false
+            }
+            Fault::Link(mode) => {
+                self.link_fault(mode);
+                mode != Mode::Pass
+            }
+            Fault::RestartMaster => {
+                self.restart_master()?;
+                false
+            }
+        })
+    }
+
+    /// Ends lasting faults: the link passes again and frozen workers are thawed.
+    pub fn undo(&mut self) {
+        self.link_fault(Mode::Pass);
+        self.thaw_all();
+    }
+
     /// Periodic checks: the master still runs, workers that exited, the gap clock.
     pub fn tick(&mut self) {
         let now = Instant::now();
@@ -386,13 +485,7 @@ impl Harness {
     /// Everything so far, the current master's counters included.
     pub fn report(&self) -> HarnessReport {
         let mut r = self.report.clone();
-        let mut t = Totals {
-            accepted: self.past.accepted,
-            handed: self.past.handed,
-            panics: self.past.panics,
-            dropped: self.past.dropped.clone(),
-            rejected: self.past.rejected.clone(),
-        };
+        let mut t = self.past.clone();
         if let Some(m) = &self.master {
             add_counters(&mut t, m.counters());
         }
@@ -405,7 +498,9 @@ impl Harness {
         r.rejected = t.rejected;
         r.results_accepted = t.accepted;
         r.jobs_handed_out = t.handed;
+        r.jobs_handed_twice = t.handed_twice;
         r.panics_contained = t.panics;
+        r.q_by_workers = ck.q_by_workers();
         r
     }
 
@@ -484,6 +579,7 @@ impl Drop for ScratchDir {
 fn add_counters(t: &mut Totals, c: &Counters) {
     t.accepted += Counters::get(&c.results_accepted);
     t.handed += Counters::get(&c.jobs_handed_out);
+    t.handed_twice += Counters::get(&c.jobs_handed_twice);
     t.panics += Counters::get(&c.panics_contained);
     for (k, v) in [
         ("late", &c.dropped_late),

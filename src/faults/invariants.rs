@@ -5,12 +5,17 @@
 //! - Every covered pixel of a shown frame came from a result of that frame: workers run
 //!   the null renderer, whose radiance names its frame, so a pixel of another frame is
 //!   seen at once.
-//! - No frame holds more results than it has jobs (S), and the master never accepts
-//!   more results than it handed out jobs.
+//! - No frame holds more results than it has jobs (S), no (frame, set) is ever handed
+//!   out twice (so at most S jobs per frame: nothing lost is recomputed), and the master
+//!   never accepts more results than it handed out jobs.
+//!
+//! It also keeps, per number of connected workers, how many frames were shown and their
+//! mean Q_t, so a run along the resource curve shows Q_t following the resources.
 //!
 //! [`CheckingSink`] is the master's frame sink in the harness; the harness tells the
 //! checker how many workers are alive ([`Checker::note_live`]).
 
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -49,6 +54,18 @@ pub struct Checker {
     last_frame: Option<FrameNo>,
     violations: u64,
     kept: Vec<String>,
+    /// The current master's `jobs_handed_twice` already reported.
+    handed_twice_seen: u64,
+    /// Shown frames and the sum of their Q_t, by connected workers (bounded: one entry
+    /// per worker count).
+    q_by_workers: BTreeMap<u64, (u64, f64)>,
+}
+
+/// Frames shown with a given number of workers connected, and their mean Q_t.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct QSummary {
+    pub frames: u64,
+    pub mean_q: f64,
 }
 
 impl Checker {
@@ -64,6 +81,8 @@ impl Checker {
             last_frame: None,
             violations: 0,
             kept: Vec::new(),
+            handed_twice_seen: 0,
+            q_by_workers: BTreeMap::new(),
         }
     }
 
@@ -82,6 +101,7 @@ impl Checker {
     /// A new master numbers its frames from the start again.
     pub fn master_restarted(&mut self) {
         self.last_frame = None;
+        self.handed_twice_seen = 0;
     }
 
     /// Checks the gap so far (call now and then: a stopped display shows nothing).
@@ -110,6 +130,9 @@ impl Checker {
             }
         }
         self.last_frame = Some(f.frame);
+        let q = self.q_by_workers.entry(f.stats.workers).or_default();
+        q.0 += 1;
+        q.1 += f.stats.q;
         if f.stats.jobs_back > self.limits.sets {
             let (n, s) = (f.stats.jobs_back, self.limits.sets);
             self.violate(format!("frame {} holds {n} results, S = {s}", f.frame));
@@ -138,6 +161,20 @@ impl Checker {
         if accepted > handed {
             self.violate(format!("{accepted} results accepted but only {handed} jobs handed out"));
         }
+        let twice = Counters::get(&c.jobs_handed_twice);
+        if twice > self.handed_twice_seen {
+            let new = twice - self.handed_twice_seen;
+            self.handed_twice_seen = twice;
+            self.violate(format!("{new} jobs handed out a second time (more than S per frame)"));
+        }
+    }
+
+    /// Frames shown and their mean Q_t, by the number of workers connected then.
+    pub fn q_by_workers(&self) -> BTreeMap<u64, QSummary> {
+        self.q_by_workers
+            .iter()
+            .map(|(&w, &(frames, sum))| (w, QSummary { frames, mean_q: sum / frames as f64 }))
+            .collect()
     }
 
     /// Records a violation found elsewhere (the master exited, a worker was not served).
@@ -271,5 +308,35 @@ mod tests {
         Counters::add(&counters.results_accepted, 1);
         c.check_counters(&counters);
         assert_eq!(c.violations(), 1);
+    }
+
+    #[test]
+    fn a_job_handed_out_twice_is_one_violation_per_occurrence() {
+        let mut c = Checker::new(limits(), None);
+        let counters = Counters::default();
+        c.check_counters(&counters);
+        Counters::add(&counters.jobs_handed_twice, 1);
+        c.check_counters(&counters);
+        c.check_counters(&counters);
+        assert_eq!(c.violations(), 1, "{:?}", c.violation_texts());
+        c.master_restarted();
+        let fresh = Counters::default();
+        c.check_counters(&fresh);
+        assert_eq!(c.violations(), 1, "a new master's counters start at zero");
+    }
+
+    #[test]
+    fn q_is_summarised_by_connected_workers() {
+        let mut c = Checker::new(limits(), None);
+        let t = Instant::now();
+        for (frame, workers, q) in [(1, 2, 0.5), (2, 2, 1.0), (3, 4, 1.0)] {
+            let mut f = shown(frame, vec![Vec3::ONE], 1);
+            f.stats.workers = workers;
+            f.stats.q = q;
+            c.on_frame(&f, t);
+        }
+        let q = c.q_by_workers();
+        assert_eq!(q[&2], QSummary { frames: 2, mean_q: 0.75 });
+        assert_eq!(q[&4], QSummary { frames: 1, mean_q: 1.0 });
     }
 }

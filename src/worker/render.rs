@@ -5,7 +5,8 @@
 //! at a time; the connection's async task only moves messages. The thread applies a new
 //! scene state (`RenderScene::set_state`) when a job names a version it has not rendered
 //! with yet, derives the job's pixels from the set number (pixel indices never travel),
-//! renders them and packs the demodulated radiance as RGB9E5.
+//! renders them, packs the demodulated radiance as RGB9E5 and tags the result with the
+//! connection's key (`gridlight_actors::integrity`).
 //!
 //! The null renderer (`--null-render`, for `gridlight bench master`) answers every job
 //! with constant radiance at no cost, so a benchmark measures the master alone.
@@ -15,6 +16,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use glam::Vec3;
+use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::packing::encode_rgb9e5;
 use gridlight_actors::protocol::{FrameNo, JobResult, PackedRadiance, SetNo, SetsConfig};
 use gridlight_actors::state::SceneState;
@@ -65,10 +67,12 @@ impl RenderThread {
         view: Option<CacheView>,
         shared: Arc<Shared>,
         sets: SetsConfig,
+        key: ResultKey,
         results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
     ) -> Result<Self, WorkerError> {
         let (jobs, rx) = std_mpsc::channel::<RenderJob>();
-        let mut renderer = Renderer { kind, view, shared, sets, scene: None, samples: Vec::new() };
+        let mut renderer =
+            Renderer { kind, view, shared, sets, key, scene: None, samples: Vec::new() };
         std::thread::Builder::new()
             .name(format!("render {name}"))
             .spawn(move || {
@@ -100,6 +104,8 @@ struct Renderer {
     view: Option<CacheView>,
     shared: Arc<Shared>,
     sets: SetsConfig,
+    /// This connection's result key: every result leaves tagged (protocol integrity).
+    key: ResultKey,
     /// Built on the first job, updated on each new state version.
     scene: Option<RenderScene>,
     /// Reused between jobs: no allocation per job once warm.
@@ -147,13 +153,15 @@ impl Renderer {
                 }
             }
         };
-        Ok(JobResult {
-            frame: job.frame,
-            set: job.set,
-            state_version: job.state.version,
-            radiance: PackedRadiance::Rgb9e5(radiance),
-            render_us: started.elapsed().as_micros() as u64,
-        })
+        // Tagged here, off the connection's async task; the tag's cost is not render time.
+        let render_us = started.elapsed().as_micros() as u64;
+        Ok(self.key.seal(
+            job.frame,
+            job.set,
+            job.state.version,
+            PackedRadiance::Rgb9e5(radiance),
+            render_us,
+        ))
     }
 
     /// Brings the render scene to `state`'s version, building or updating it as needed.

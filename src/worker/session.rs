@@ -3,8 +3,9 @@
 //! Phases (see `gridlight_actors::protocol`): Hello → Challenge → Auth → Welcome, then the
 //! assets missing from the cache are fetched by hash, and from then on the session keeps
 //! `k` jobs in flight: it sends `Ready{credits}`, stores every `State` it is sent, hands
-//! each `Job` with its state to the render thread and sends each result back followed by a
-//! new credit. A writer task owns the socket's sending half and sends a heartbeat whenever
+//! each `Job` with its state to the render thread (which tags each result with the
+//! connection's key derived from the `Challenge` nonce) and sends each result back
+//! followed by a new credit. A writer task owns the socket's sending half and sends a heartbeat whenever
 //! the session has been quiet for `HEARTBEAT_INTERVAL`, so long renders and downloads
 //! never look like a dead worker; a master silent for `PEER_TIMEOUT` is gone.
 //!
@@ -16,6 +17,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use futures::{Sink, SinkExt, Stream, StreamExt};
+use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::protocol::{
     AssetEntry, MasterMsg, WorkerMsg, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION,
 };
@@ -131,6 +133,9 @@ where
     }
     let mac = config.secret.as_ref().map(|s| gridlight_actors::auth::mac(s, &nonce));
     conn.send(WorkerMsg::Auth { mac }).await?;
+    // The master keys result tags with the secret only when it has one (it said so).
+    let key_secret = config.secret.as_deref().filter(|_| auth_required).map(Vec::as_slice);
+    let result_key = ResultKey::derive(key_secret, &nonce);
     let (worker_id, sets, manifest) = match conn.recv_handshake().await? {
         MasterMsg::Welcome { worker_id, sets, assets } => (worker_id, sets, assets),
         other => return Err(unexpected("Welcome", &other)),
@@ -147,6 +152,7 @@ where
         Some(view),
         Arc::clone(shared),
         sets,
+        result_key,
         results_tx,
     )?;
     let mut states: BTreeMap<StateVersion, Arc<SceneState>> = BTreeMap::new();
