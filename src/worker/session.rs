@@ -271,14 +271,15 @@ where
         }
     }
 
-    /// A handshake answer: a rejection here is fatal (wrong version or secret) unless
-    /// the master says it is full, and so is the master closing without a word.
+    /// A handshake answer: a rejection for a wrong version or secret is fatal; any other
+    /// (a full master, a frame garbled on the way, a timeout on a stalled link) is
+    /// retried, and so is the master closing without a word.
     async fn recv_handshake(&mut self) -> Result<MasterMsg, WorkerError> {
         loop {
             match self.recv().await? {
                 Some(MasterMsg::Heartbeat) => continue,
                 Some(MasterMsg::Rejected { reason }) => {
-                    let fatal = !is_transient_rejection(&reason);
+                    let fatal = is_fatal_rejection(&reason);
                     return Err(WorkerError::Rejected { reason, fatal });
                 }
                 Some(msg) => return Ok(msg),
@@ -292,10 +293,12 @@ where
     }
 }
 
-/// Rejections that say "later", not "never": a full master.
-fn is_transient_rejection(reason: &str) -> bool {
-    let r = reason.to_ascii_lowercase();
-    ["too many", "capacity", "full", "busy", "shutting down"].iter().any(|w| r.contains(w))
+/// Rejections that say "never", not "later": who we are (protocol version, secret) is
+/// wrong, and reconnecting cannot change it. Classified as the master counts them, so
+/// that a link fault during the handshake (a garbled frame, a stall) is not mistaken for
+/// one and does not end the worker.
+fn is_fatal_rejection(reason: &str) -> bool {
+    matches!(gridlight_actors::stats::rejection_kind(reason), "version" | "auth")
 }
 
 fn unexpected(wanted: &str, got: &MasterMsg) -> WorkerError {
@@ -317,9 +320,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn only_a_full_master_is_worth_retrying_during_the_handshake() {
-        assert!(is_transient_rejection("too many connections (cap 256)"));
-        assert!(!is_transient_rejection("protocol version 2, this master speaks 1"));
-        assert!(!is_transient_rejection("authentication failed"));
+    fn only_a_wrong_version_or_secret_is_fatal_during_the_handshake() {
+        assert!(!is_fatal_rejection("too many connections (cap 256)"));
+        assert!(!is_fatal_rejection("bad frame: undecodable message: x"));
+        assert!(!is_fatal_rejection("no message from the worker for 2.0 s"));
+        assert!(is_fatal_rejection("protocol version mismatch: worker speaks 2, master speaks 3"));
+        assert!(is_fatal_rejection("authentication failed: wrong shared secret"));
     }
 }
