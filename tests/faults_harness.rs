@@ -24,6 +24,9 @@ const HOLD: Duration = Duration::from_millis(1200);
 fn config() -> HarnessConfig {
     let mut c = HarnessConfig::new(PathBuf::from(env!("CARGO_BIN_EXE_gridlight")), WORKERS);
     c.secret = Some(b"harness secret".to_vec());
+    // Tighter than the soak's bound: a restarted actor must not leave the display dark
+    // (frames it abandoned must not stretch the wait heuristic's deadlines).
+    c.max_gap = Duration::from_secs(5);
     c
 }
 

@@ -20,7 +20,7 @@ use crate::accumulate::Accumulator;
 use crate::assembler::{CloseFrame, FrameProgress};
 use crate::frame_table::ClosedFrame;
 use crate::protocol::FrameNo;
-use crate::scheduler::FrameDisplayed;
+use crate::scheduler::{FrameDisplayed, FramesAbandoned};
 use crate::sink::{spawn_sink, FrameSink, ShownFrame, SinkOutcome};
 use crate::stats::{Counters, FrameStats};
 use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
@@ -73,6 +73,10 @@ pub struct Display {
     pending: BTreeMap<FrameNo, Pending>,
     /// Frames up to this one were displayed.
     last_closed: Option<FrameNo>,
+    /// Frames below this one lost their queued jobs (a scheduler restart): decided at once
+    /// and left out of the frame time, so lost work cannot stretch I_max (each skip at
+    /// I_max would otherwise multiply the next frame's wait by I_max).
+    abandoned_before: FrameNo,
     last_close_at: Instant,
     /// A CloseFrame is on its way to the assembler.
     closing: bool,
@@ -117,6 +121,7 @@ impl Display {
             last_frame_time: config.initial_frame_time,
             pending: BTreeMap::new(),
             last_closed: None,
+            abandoned_before: 0,
             last_close_at: Instant::now(),
             closing: false,
             skipped_since_show: 0,
@@ -206,6 +211,14 @@ impl Handler<Shutdown> for Display {
     }
 }
 
+impl Handler<FramesAbandoned> for Display {
+    type Result = ();
+    fn handle(&mut self, msg: FramesAbandoned, ctx: &mut Context<Self>) {
+        self.abandoned_before = self.abandoned_before.max(msg.before);
+        self.evaluate(ctx);
+    }
+}
+
 impl Handler<InjectPanic> for Display {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
@@ -224,8 +237,11 @@ impl Display {
         let Some((&frame, &p)) = self.pending.iter().next() else { return };
         let start = p.scheduled_at.max(self.last_close_at);
         let elapsed = start.elapsed();
+        let abandoned = frame < self.abandoned_before;
+        // An abandoned frame is judged as if its time were up: shown if good enough.
+        let judged_at = if abandoned { Duration::MAX } else { elapsed };
         let decision = match contain(|| {
-            decide(&self.pacing, p.back, p.total, elapsed, self.last_frame_time)
+            decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time)
         }) {
             Ok(d) => d,
             Err(msg) => return self.restart_after(&msg, ctx),
@@ -249,16 +265,18 @@ impl Display {
                     act.evaluate(ctx);
                 }));
             }
-            Decision::Show => self.close(frame, false, elapsed, p, ctx),
-            Decision::Skip => self.close(frame, true, elapsed, p, ctx),
+            Decision::Show => self.close(frame, false, abandoned, elapsed, p, ctx),
+            Decision::Skip => self.close(frame, true, abandoned, elapsed, p, ctx),
         }
     }
 
-    /// Takes `frame` from the assembler; shows it (or only counts it when skipped).
+    /// Takes `frame` from the assembler; shows it (or only counts it when skipped). The
+    /// time an abandoned frame took is not the workers' frame time.
     fn close(
         &mut self,
         frame: FrameNo,
         skip: bool,
+        abandoned: bool,
         elapsed: Duration,
         p: Pending,
         ctx: &mut Context<Self>,
@@ -277,7 +295,9 @@ impl Display {
                 act.displayed_to.do_send(FrameDisplayed { frame });
                 match res {
                     Ok(Some(closed)) if !skip => {
-                        act.last_frame_time = elapsed;
+                        if !abandoned {
+                            act.last_frame_time = elapsed;
+                        }
                         if let Err(msg) = contain(|| act.show(closed, q, i, elapsed)) {
                             return act.restart_after(&msg, ctx);
                         }
@@ -286,7 +306,9 @@ impl Display {
                         // The skipped frame's time becomes the last frame's time, so that
                         // when workers slow down I_max grows until frames complete again
                         // (otherwise a fast past would make every frame skip forever).
-                        act.last_frame_time = elapsed;
+                        if !abandoned {
+                            act.last_frame_time = elapsed;
+                        }
                         act.skipped_since_show += 1;
                         act.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
                         act.report.changed.notify_all();

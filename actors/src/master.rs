@@ -234,6 +234,7 @@ fn wire(
     let links = SchedulerLinks {
         frames_to: assembler.clone().recipient(),
         handouts_to: assembler.clone().recipient(),
+        abandoned_to: display.clone().recipient(),
     };
     scheduler_ctx.run(Scheduler::new(
         config.sets.sets,

@@ -70,6 +70,16 @@ pub struct JobsHandedOut {
 pub struct SchedulerLinks {
     pub frames_to: Recipient<FrameScheduled>,
     pub handouts_to: Recipient<JobsHandedOut>,
+    pub abandoned_to: Recipient<FramesAbandoned>,
+}
+
+/// To the display: frames before `before` lost their queued jobs (the scheduler
+/// restarted) and will get no results beyond those already handed out. Waiting for them
+/// says nothing about the workers' speed, so the display decides on them at once.
+#[derive(Message, Debug, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct FramesAbandoned {
+    pub before: FrameNo,
 }
 
 /// The job queue and the workers waiting for jobs.
@@ -193,6 +203,7 @@ impl Scheduler {
                 let state = self.queue.state().clone();
                 let first = self.queue.next_frame();
                 self.queue = JobQueue::new(self.sets, self.threshold, state, first);
+                self.links.abandoned_to.do_send(FramesAbandoned { before: first });
                 ctx.notify(Restarted);
             }
         }
