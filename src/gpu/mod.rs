@@ -3,9 +3,11 @@
 
 pub mod compute;
 pub mod context;
+pub mod gbuffer;
 pub mod readback;
 pub mod reconstruct;
 pub mod shaders;
 
 pub use context::{GpuContext, GpuError};
+pub use gbuffer::GpuGBuffer;
 pub use reconstruct::GpuReconstructor;

@@ -8,6 +8,8 @@ pub const FILL: &str = include_str!("../../shaders/fill.wgsl");
 pub const TEMPORAL: &str = include_str!("../../shaders/temporal.wgsl");
 pub const GAUSSIAN: &str = include_str!("../../shaders/gaussian.wgsl");
 pub const REMODULATE: &str = include_str!("../../shaders/remodulate.wgsl");
+/// The G-buffer raster pass: standalone, it declares its own bindings.
+pub const GBUFFER: &str = include_str!("../../shaders/gbuffer.wgsl");
 
 /// Every compute pass by file name, for the passes and the naga validation test.
 pub const PASSES: [(&str, &str); 5] = [

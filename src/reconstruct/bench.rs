@@ -6,14 +6,20 @@
 //! time is wall-clock time of `reconstruct`; GPU time comes from timestamps written at the
 //! start of the first pass and the end of the last (uploads and readback excluded; they
 //! are in `gpu_wall_ms`).
+//!
+//! The G-buffer is timed on the built-in Cornell box at the same size, a new scene-state
+//! version per frame: `gbuffer_ms` for the raster pass, `gbuffer_cpu_ms` for the CPU path
+//! (wall-clock, readback and the environment lookup of escaping rays included).
 
 use std::time::Instant;
 
 use serde::Serialize;
 
 use super::synthetic::{self, SyntheticView};
-use super::{CpuReconstructor, FrameInputs, GBuffer, ReconstructParams};
-use crate::gpu::{GpuContext, GpuReconstructor};
+use super::{CpuReconstructor, FrameInputs, GBuffer, GBufferBackend, GBufferSource};
+use super::ReconstructParams;
+use crate::gpu::{GpuContext, GpuGBuffer, GpuReconstructor};
+use crate::render::testscenes;
 
 /// What to measure.
 #[derive(Clone, Copy, Debug)]
@@ -58,6 +64,10 @@ pub struct BenchReport {
     pub gpu_ms: Option<f64>,
     /// Median wall milliseconds per GPU frame including upload and readback.
     pub gpu_wall_ms: Option<f64>,
+    /// Median wall milliseconds of the GPU G-buffer (raster pass and readback).
+    pub gbuffer_ms: Option<f64>,
+    /// Median wall milliseconds of the CPU G-buffer (one primary ray per pixel).
+    pub gbuffer_cpu_ms: Option<f64>,
     /// The adapter's name, or why there is none.
     pub gpu_adapter: String,
 }
@@ -106,6 +116,8 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
         cpu_threads: rayon::current_num_threads(),
         gpu_ms: None,
         gpu_wall_ms: None,
+        gbuffer_ms: None,
+        gbuffer_cpu_ms: None,
         gpu_adapter: "not measured".into(),
     };
     if s.cpu {
@@ -119,6 +131,12 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
             }
         }
         report.cpu_ms = median(times);
+        let (assets, state) = testscenes::cornell_box(s.width, s.height);
+        let mut source = GBufferSource::new(assets, &state, GBufferBackend::Cpu)?;
+        report.gbuffer_cpu_ms = time_gbuffers(s.frames, &state, |st| {
+            source.get(st)?;
+            Ok(())
+        })?;
     }
     if s.gpu {
         match GpuContext::new() {
@@ -126,7 +144,14 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
             Ok(ctx) => {
                 report.gpu_adapter =
                     format!("{} ({:?})", ctx.adapter_info.name, ctx.adapter_info.backend);
-                let mut r = GpuReconstructor::new(ctx.shared(), s.width, s.height, s.params)?;
+                let ctx = ctx.shared();
+                let (assets, state) = testscenes::cornell_box(s.width, s.height);
+                let mut g = GpuGBuffer::new(ctx.clone(), assets, &state)?;
+                report.gbuffer_ms = time_gbuffers(s.frames, &state, |st| {
+                    g.compute(st)?;
+                    Ok(())
+                })?;
+                let mut r = GpuReconstructor::new(ctx, s.width, s.height, s.params)?;
                 let (mut gpu, mut wall) = (Vec::new(), Vec::new());
                 for k in 0..warmup + s.frames as u64 {
                     let t = Instant::now();
@@ -142,4 +167,24 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
         }
     }
     Ok(report)
+}
+
+/// Median wall milliseconds of `compute` over `frames` new versions of `state` (after one
+/// warm-up that uploads and compiles).
+fn time_gbuffers(
+    frames: u32,
+    state: &gridlight_actors::state::SceneState,
+    mut compute: impl FnMut(&gridlight_actors::state::SceneState) -> anyhow::Result<()>,
+) -> anyhow::Result<Option<f64>> {
+    let mut state = state.clone();
+    let mut times = Vec::new();
+    for k in 0..=frames {
+        state.version += 1;
+        let t = Instant::now();
+        compute(&state)?;
+        if k > 0 {
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    Ok(median(times))
 }

@@ -1,18 +1,22 @@
 //! The G-buffer: per-pixel primary-hit data that guides reconstruction and remodulation.
 //!
 //! Computed on the master for every pixel of a frame's scene state (DESIGN.md), by the
-//! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel) or the wgpu raster pass.
+//! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel) or the wgpu raster pass
+//! (`crate::gpu::GpuGBuffer`); [`GBufferSource`] picks one and caches by state version.
 //! Stored as separate planes (structure of arrays) because each pass reads only some of
 //! them and the GPU uploads each as its own texture.
 
+use std::sync::Arc;
+
 use glam::Vec3;
-use gridlight_actors::state::SceneState;
+use gridlight_actors::state::{SceneState, StateVersion};
 
 use rayon::prelude::*;
 
 use super::ReconstructError;
 use crate::assets::Assets;
-use crate::render::{primary_hit, PixelSample, RenderScene};
+use crate::gpu::{GpuContext, GpuError, GpuGBuffer};
+use crate::render::{primary_hit, PixelSample, RenderError, RenderScene};
 
 /// Object id of pixels whose camera ray hit no object.
 pub const NO_OBJECT: u32 = u32::MAX;
@@ -150,6 +154,128 @@ pub fn scene_scale(state: &SceneState, assets: &Assets) -> f32 {
         extent
     } else {
         1.0
+    }
+}
+
+/// Why a G-buffer could not be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum GBufferError {
+    #[error("scene state cannot be drawn: {0}")]
+    Scene(#[from] RenderError),
+    #[error("GPU G-buffer: {0}")]
+    Gpu(#[from] GpuError),
+}
+
+/// Which implementation computes G-buffers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GBufferBackend {
+    /// The raster pass where an adapter works, the CPU path otherwise.
+    #[default]
+    Auto,
+    /// Primary rays through the tracer's BVH on all cores.
+    Cpu,
+    /// The raster pass; an error where no adapter works.
+    Gpu,
+}
+
+enum Engine {
+    Cpu(RenderScene),
+    Gpu(Box<GpuGBuffer>),
+}
+
+/// The master's G-buffers: one per scene-state version, from the raster pass or the CPU
+/// path (they agree; `tests/gbuffer_parity.rs`), computed only when the version is new.
+pub struct GBufferSource {
+    assets: Arc<Assets>,
+    engine: Engine,
+    /// Why `Auto` ended up on the CPU, if it did.
+    fallback: Option<String>,
+    current: Option<(StateVersion, Arc<GBuffer>)>,
+}
+
+impl GBufferSource {
+    /// Prepares G-buffers of scene states over `assets`, starting from `initial`; `Auto` and
+    /// `Gpu` open the default adapter.
+    pub fn new(
+        assets: Arc<Assets>,
+        initial: &SceneState,
+        backend: GBufferBackend,
+    ) -> Result<Self, GBufferError> {
+        let ctx = match backend {
+            GBufferBackend::Cpu => Ok(None),
+            _ => GpuContext::new().map(|c| Some(c.shared())),
+        };
+        match ctx {
+            Ok(ctx) => Self::with_context(assets, initial, backend, ctx),
+            Err(err) if backend == GBufferBackend::Auto => {
+                let mut source = Self::with_context(assets, initial, GBufferBackend::Cpu, None)?;
+                source.fallback = Some(err.to_string());
+                Ok(source)
+            }
+            Err(err) => Err(err.into()),
+        }
+    }
+
+    /// Like [`Self::new`] on a device that is already open (the reconstructor's), or on
+    /// none (`ctx` `None`: `Auto` means the CPU path, `Gpu` is an error).
+    pub fn with_context(
+        assets: Arc<Assets>,
+        initial: &SceneState,
+        backend: GBufferBackend,
+        ctx: Option<Arc<GpuContext>>,
+    ) -> Result<Self, GBufferError> {
+        let cpu = |assets: &Arc<Assets>| -> Result<Engine, GBufferError> {
+            Ok(Engine::Cpu(RenderScene::new(Arc::clone(assets), initial)?))
+        };
+        let (engine, fallback) = match (backend, ctx) {
+            (GBufferBackend::Cpu, _) => (cpu(&assets)?, None),
+            (GBufferBackend::Auto, None) => (cpu(&assets)?, Some("no GPU context".to_string())),
+            (GBufferBackend::Gpu, None) => {
+                return Err(GpuError::NoAdapter("no GPU context was given".into()).into())
+            }
+            (backend, Some(ctx)) => match GpuGBuffer::new(ctx, Arc::clone(&assets), initial) {
+                Ok(gpu) => (Engine::Gpu(Box::new(gpu)), None),
+                Err(GBufferError::Gpu(err)) if backend == GBufferBackend::Auto => {
+                    (cpu(&assets)?, Some(err.to_string()))
+                }
+                Err(err) => return Err(err),
+            },
+        };
+        if let Some(why) = &fallback {
+            tracing::info!(why = %why, "G-buffer on the CPU");
+        }
+        Ok(Self { assets, engine, fallback, current: None })
+    }
+
+    /// Whether G-buffers come from the raster pass.
+    pub fn is_gpu(&self) -> bool {
+        matches!(self.engine, Engine::Gpu(_))
+    }
+
+    /// Why `Auto` chose the CPU path, if it did.
+    pub fn fallback_reason(&self) -> Option<&str> {
+        self.fallback.as_deref()
+    }
+
+    /// The G-buffer of `state`, computed only when its version is new.
+    pub fn get(&mut self, state: &SceneState) -> Result<Arc<GBuffer>, GBufferError> {
+        if let Some((version, g)) = &self.current {
+            if *version == state.version {
+                return Ok(Arc::clone(g));
+            }
+        }
+        let g = match &mut self.engine {
+            Engine::Gpu(gpu) => gpu.compute(state)?,
+            Engine::Cpu(scene) => {
+                if scene.state().version != state.version {
+                    scene.set_state(state)?;
+                }
+                GBuffer::from_scene(scene, &self.assets)
+            }
+        };
+        let g = Arc::new(g);
+        self.current = Some((state.version, Arc::clone(&g)));
+        Ok(g)
     }
 }
 

@@ -29,7 +29,7 @@ pub mod synthetic;
 pub mod tonemap;
 
 pub use cpu::CpuReconstructor;
-pub use gbuffer::{scene_scale, GBuffer, NO_OBJECT};
+pub use gbuffer::{scene_scale, GBuffer, GBufferBackend, GBufferError, GBufferSource, NO_OBJECT};
 pub use params::ReconstructParams;
 
 use crate::gpu::{GpuContext, GpuError, GpuReconstructor};

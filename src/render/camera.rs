@@ -1,6 +1,6 @@
 //! Primary rays: a pinhole or thin-lens camera from the scene state's `Camera`.
 
-use glam::{Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use gridlight_actors::state::{Camera, Resolution};
 
 /// Precomputed camera basis for generating rays through pixel positions.
@@ -94,6 +94,34 @@ impl CameraRays {
         let origin = self.origin + offset;
         (origin, (focus - origin).normalize())
     }
+
+    /// The rays of [`Self::ray`] with lens sample (0.5, 0.5) — the G-buffer's primary rays
+    /// (`primary_hit`) — as a rasteriser's camera: the eye and a world-to-clip matrix for
+    /// wgpu (NDC y up, depth in [0, 1]). Depth is reverse-Z with an infinite far plane:
+    /// `near / view depth`, 1 at `near`, so nothing beyond the near plane is clipped.
+    /// A thin lens moves that eye off-axis; its rays still meet on the plane in focus,
+    /// which shifts the principal point instead of tilting the image plane.
+    pub fn raster_view(&self, near: f32) -> (Vec3, Mat4) {
+        let (eye, _) = self.ray(Vec2::ZERO, Vec2::splat(0.5));
+        // The lens offset over the focus distance: how far the focus points of the rays
+        // sit to the side of a pinhole at `eye` (image plane at distance one).
+        let lens = eye - self.origin;
+        let (sx, sy) = if self.aperture == 0.0 {
+            (0.0, 0.0)
+        } else {
+            (lens.dot(self.right) / self.focus_distance, lens.dot(self.up) / self.focus_distance)
+        };
+        let view = |axis: Vec3| axis.extend(-axis.dot(eye));
+        let (r, u, f) = (view(self.right), view(self.up), view(self.forward));
+        // Rows of clip = P · V · p: x and y over the half extents, w = view depth.
+        let rows = [
+            (r + f * sx) / self.half_w,
+            (u + f * sy) / self.half_h,
+            Vec4::new(0.0, 0.0, 0.0, near),
+            f,
+        ];
+        (eye, Mat4::from_cols(rows[0], rows[1], rows[2], rows[3]).transpose())
+    }
 }
 
 #[cfg(test)]
@@ -136,6 +164,30 @@ mod tests {
         c.vfov_deg = f32::NAN;
         assert!(CameraRays::new(&c, res).is_err());
         assert!(CameraRays::new(&camera(), Resolution { width: 0, height: 4 }).is_err());
+    }
+
+    #[test]
+    fn raster_view_projects_primary_rays_onto_their_pixels() {
+        let res = Resolution { width: 64, height: 48 };
+        let mut lens = camera();
+        lens.aperture = 0.3;
+        lens.focus_distance = 4.0;
+        lens.position = Vec3::new(0.5, 1.0, 5.0);
+        for c in [camera(), lens] {
+            let cam = CameraRays::new(&c, res).unwrap();
+            let (eye, m) = cam.raster_view(0.01);
+            for px in [Vec2::new(0.5, 0.5), Vec2::new(40.5, 7.5), Vec2::new(63.5, 47.5)] {
+                let (o, d) = cam.ray(px, Vec2::splat(0.5));
+                assert!((o - eye).length() < 1e-6);
+                for t in [0.5, 3.0, 40.0] {
+                    let clip = m * (o + d * t).extend(1.0);
+                    let ndc = clip.truncate() / clip.w;
+                    let pixel = Vec2::new((ndc.x + 1.0) * 32.0, (1.0 - ndc.y) * 24.0);
+                    assert!((pixel - px).length() < 1e-3, "{pixel} vs {px}");
+                    assert!(ndc.z > 0.0 && ndc.z < 1.0);
+                }
+            }
+        }
     }
 
     #[test]

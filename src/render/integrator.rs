@@ -340,13 +340,11 @@ pub fn render_pixels_counted(
 
 /// G-buffer sample through the pixel centre (radiance zero).
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
-    let width = scene.state().resolution.width.max(1);
-    let pos = Vec2::new((pixel % width) as f32 + 0.5, (pixel / width) as f32 + 0.5);
-    let (o, d) = scene.camera.ray(pos, Vec2::splat(0.5));
+    let (o, d) = primary_ray(scene, pixel);
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
     match closest(scene, o, d) {
         None => {
-            out.emission = scene.lights.escaped(d).iter().map(|e| e.0).sum();
+            out.emission = escaped(scene, d);
         }
         Some(Hit::Light(q, t)) => {
             if -d.dot(q.normal) > 0.0 {
@@ -366,6 +364,24 @@ pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
         }
     }
     out
+}
+
+/// The G-buffer's camera ray through the centre of `pixel` (lens centre for thin lenses).
+fn primary_ray(scene: &RenderScene, pixel: u32) -> (Vec3, Vec3) {
+    let width = scene.state().resolution.width.max(1);
+    let pos = Vec2::new((pixel % width) as f32 + 0.5, (pixel / width) as f32 + 0.5);
+    scene.camera.ray(pos, Vec2::splat(0.5))
+}
+
+/// Environment and sun radiance along an escaping ray.
+fn escaped(scene: &RenderScene, d: Vec3) -> Vec3 {
+    scene.lights.escaped(d).iter().map(|e| e.0).sum()
+}
+
+/// The emission [`primary_hit`] reports for `pixel` if its ray hits nothing, for
+/// G-buffers that find the hits another way (the raster pass).
+pub fn escaped_emission(scene: &RenderScene, pixel: u32) -> Vec3 {
+    escaped(scene, primary_ray(scene, pixel).1)
 }
 
 /// Picking for the window: the object hit by the ray through (x, y) in pixels.
