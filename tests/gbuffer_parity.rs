@@ -3,11 +3,13 @@
 //! and non-uniformly scaled object, a two-slot mesh without normals whose uvs wrap, a quad
 //! light and a coloured environment; and moving an object changes the GPU G-buffer.
 //!
-//! Tolerances. Object ids: ≥ 99 % of pixels equal. A rasteriser snaps vertices to its
-//! sub-pixel grid (Vulkan: at least 1/256 pixel) and applies top-left rules, so a pixel centre
-//! that lies within ~1/512 pixel of a silhouette edge may land on the other side of it than
-//! the ray does; at 640×480 that is a few dozen pixels at most (well under 0.1 %); 1 % leaves
-//! room for other rasterisers' coarser snapping. The same snapping moves the sample point
+//! Tolerances. Object ids: ≥ 99 % of pixels equal, and every pixel whose ids differ lies
+//! next to an object edge (another id in its 3×3 neighbourhood of the CPU G-buffer). A
+//! rasteriser snaps vertices to its sub-pixel grid (Vulkan: at least 1/256 pixel) and
+//! applies tie-breaking rules on edges, and the ray-triangle test makes its own rounding
+//! there, so a pixel centre very close to a silhouette may land on the other side of it;
+//! lavapipe differs on 0.05 % of the Cornell box's pixels, all of them on edges, and 1 %
+//! leaves room for rasterisers with coarser snapping. The same snapping moves the sample point
 //! inside a triangle by ≤ 1/512 pixel, and where two triangles of one object meet (a cube's
 //! edge) the ids agree but the normals need not, so values are compared on interior pixels:
 //! those whose 3×3 neighbourhood has one object id and one triangle plane in the CPU
@@ -133,7 +135,10 @@ fn cpu_gbuffer(assets: &Arc<Assets>, state: &SceneState) -> Arc<GBuffer> {
 fn gpu_context(test: &str) -> Option<Arc<GpuContext>> {
     match GpuContext::new() {
         Ok(ctx) => {
-            println!("{test}: GPU adapter {} ({:?})", ctx.adapter_info.name, ctx.adapter_info.backend);
+            println!(
+                "{test}: GPU adapter {} ({:?})",
+                ctx.adapter_info.name, ctx.adapter_info.backend
+            );
             Some(ctx.shared())
         }
         Err(err) => {
@@ -165,10 +170,26 @@ fn interior(g: &GBuffer) -> Vec<bool> {
         .collect()
 }
 
+/// Pixels with another object id (or a miss) in their 3×3 neighbourhood in `g`.
+fn on_id_edge(g: &GBuffer, i: usize) -> bool {
+    let (w, h) = (g.width as i64, g.height as i64);
+    let (x, y) = (i as i64 % w, i as i64 / w);
+    (-1..=1).any(|dy| {
+        (-1..=1).any(|dx| {
+            let (nx, ny) = (x + dx, y + dy);
+            (0..w).contains(&nx)
+                && (0..h).contains(&ny)
+                && g.object[(ny * w + nx) as usize] != g.object[i]
+        })
+    })
+}
+
 /// Agreement figures of two G-buffers.
 #[derive(Debug, Default)]
 struct Agreement {
     ids_equal: f64,
+    /// Pixels whose ids differ although no other id is next to them in the CPU G-buffer.
+    ids_off_edges: usize,
     interior: usize,
     misses: usize,
     max_normal: f32,
@@ -188,12 +209,15 @@ fn compare(cpu: &GBuffer, gpu: &GBuffer) -> Agreement {
         ..Default::default()
     };
     let inner = interior(cpu);
+    a.ids_off_edges =
+        (0..cpu.len()).filter(|&i| cpu.object[i] != gpu.object[i] && !on_id_edge(cpu, i)).count();
     for i in 0..cpu.len() {
         let both_missed = cpu.normal[i] == Vec3::ZERO && gpu.normal[i] == Vec3::ZERO;
         if both_missed {
             // Escaping rays: the same environment lookup on both sides.
             a.misses += 1;
-            a.max_emission = a.max_emission.max((cpu.emission[i] - gpu.emission[i]).abs().max_element());
+            a.max_emission =
+                a.max_emission.max((cpu.emission[i] - gpu.emission[i]).abs().max_element());
             assert_eq!(gpu.albedo[i], Vec3::ONE);
             assert_eq!(gpu.position[i], Vec3::ZERO);
         }
@@ -216,6 +240,7 @@ fn assert_agree(name: &str, cpu: &GBuffer, gpu: &GBuffer) {
     let a = compare(cpu, gpu);
     println!("{name}: {a:?}");
     assert!(a.ids_equal >= 0.99, "{name}: only {:.4} of object ids agree", a.ids_equal);
+    assert_eq!(a.ids_off_edges, 0, "{name}: ids differ away from object edges");
     assert!(a.interior as f64 > 0.5 * cpu.len() as f64, "{name}: too few interior pixels");
     assert!(a.min_cos >= 0.999, "{name}: normals differ (min cos {})", a.min_cos);
     assert!(

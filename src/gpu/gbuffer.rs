@@ -385,7 +385,8 @@ impl GpuGBuffer {
             (&self.material_pipeline, [&views[2], &views[3]], wgpu::Color::WHITE, false),
         ];
         // Albedo clears to 1 and everything else to 0: what primary_hit gives a miss.
-        let clear_colour = |c: wgpu::Color, k: usize| if k == 0 { c } else { wgpu::Color::TRANSPARENT };
+        let clear_colour =
+            |c: wgpu::Color, k: usize| if k == 0 { c } else { wgpu::Color::TRANSPARENT };
         for (pipeline, targets, clear, first) in passes {
             let colour = |k: usize| {
                 Some(wgpu::RenderPassColorAttachment {
@@ -466,7 +467,6 @@ impl GpuGBuffer {
             *e = crate::render::escaped_emission(scene, i as u32);
         });
     }
-
 }
 
 fn upload_mesh(

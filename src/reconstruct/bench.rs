@@ -16,8 +16,8 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::synthetic::{self, SyntheticView};
-use super::{CpuReconstructor, FrameInputs, GBuffer, GBufferBackend, GBufferSource};
 use super::ReconstructParams;
+use super::{CpuReconstructor, FrameInputs, GBuffer, GBufferBackend, GBufferSource};
 use crate::gpu::{GpuContext, GpuGBuffer, GpuReconstructor};
 use crate::render::testscenes;
 

@@ -36,7 +36,8 @@ use envmap::Environment;
 use lights::{AreaLight, Lights};
 
 pub use integrator::{
-    escaped_emission, pick, primary_hit, render_pixels, render_pixels_counted, RenderStats, Strategy,
+    escaped_emission, pick, primary_hit, render_pixels, render_pixels_counted, RenderStats,
+    Strategy,
 };
 
 /// Why a scene state cannot be rendered with the given assets.
