@@ -211,7 +211,7 @@ fn compare(cpu: &GBuffer, gpu: &GBuffer) -> Agreement {
     let inner = interior(cpu);
     a.ids_off_edges =
         (0..cpu.len()).filter(|&i| cpu.object[i] != gpu.object[i] && !on_id_edge(cpu, i)).count();
-    for i in 0..cpu.len() {
+    for (i, &inside) in inner.iter().enumerate() {
         let both_missed = cpu.normal[i] == Vec3::ZERO && gpu.normal[i] == Vec3::ZERO;
         if both_missed {
             // Escaping rays: the same environment lookup on both sides.
@@ -221,7 +221,7 @@ fn compare(cpu: &GBuffer, gpu: &GBuffer) -> Agreement {
             assert_eq!(gpu.albedo[i], Vec3::ONE);
             assert_eq!(gpu.position[i], Vec3::ZERO);
         }
-        if !inner[i] || cpu.object[i] != gpu.object[i] {
+        if !inside || cpu.object[i] != gpu.object[i] {
             continue;
         }
         a.interior += 1;

@@ -4,6 +4,7 @@
 pub mod compute;
 pub mod context;
 pub mod gbuffer;
+mod raster;
 pub mod readback;
 pub mod reconstruct;
 pub mod shaders;

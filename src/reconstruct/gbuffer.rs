@@ -178,8 +178,9 @@ pub enum GBufferBackend {
     Gpu,
 }
 
+/// Both boxed: each holds a whole `RenderScene`.
 enum Engine {
-    Cpu(RenderScene),
+    Cpu(Box<RenderScene>),
     Gpu(Box<GpuGBuffer>),
 }
 
@@ -225,7 +226,7 @@ impl GBufferSource {
         ctx: Option<Arc<GpuContext>>,
     ) -> Result<Self, GBufferError> {
         let cpu = |assets: &Arc<Assets>| -> Result<Engine, GBufferError> {
-            Ok(Engine::Cpu(RenderScene::new(Arc::clone(assets), initial)?))
+            Ok(Engine::Cpu(Box::new(RenderScene::new(Arc::clone(assets), initial)?)))
         };
         let (engine, fallback) = match (backend, ctx) {
             (GBufferBackend::Cpu, _) => (cpu(&assets)?, None),
