@@ -5,7 +5,8 @@
 //!
 //! The scene state goes through the tracer's own [`RenderScene`] — instances, transforms,
 //! material bindings, quad lights and the camera are exactly what the workers render, and
-//! nothing of `RenderScene::set_state` is repeated here. Meshes are uploaded once (every
+//! nothing of `RenderScene::set_state` is repeated here (the price: the scene's BVHs are
+//! built although only the CPU path traces them). Meshes are uploaded once (every
 //! mesh of the [`Assets`] up front, built-in shapes on first use), de-indexed so that each
 //! vertex can carry its triangle's geometric normal, with triangles grouped by material
 //! slot: one draw per (instance, slot). Rays that hit nothing take their emission from the
