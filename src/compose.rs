@@ -1,6 +1,9 @@
 //! Turning a shown frame into pixels: the G-buffer of its scene state, reconstruction, and
 //! the [`View`] asked for.
 //!
+//! G-buffers come from the wgpu raster pass where an adapter exists and from primary rays
+//! on the CPU otherwise ([`GBufferSource`]), reconstruction likewise.
+//!
 //! One composer serves both the headless sink and the window, so that what a headless
 //! master writes is exactly what the window shows. Every frame is reconstructed, whatever
 //! the view, so that the temporal history and the accumulation stay complete when the user
@@ -10,66 +13,29 @@ use std::sync::{Arc, RwLock};
 
 use glam::Vec3;
 use gridlight_actors::sink::ShownFrame;
-use gridlight_actors::state::{SceneState, StateVersion};
+use gridlight_actors::state::SceneState;
 use thiserror::Error;
 
 use crate::assets::Assets;
+use crate::reconstruct::gbuffer::{GBufferBackend, GBufferError, GBufferSource};
 use crate::reconstruct::{
-    Backend, FrameInputs, GBuffer, ReconstructError, ReconstructParams, Reconstructor,
+    Backend, FrameInputs, ReconstructError, ReconstructParams, Reconstructor,
 };
-use crate::render::{RenderError, RenderScene};
 use crate::view::{self, View, ViewInputs};
 
-/// The render scene of the last composed frame's state, shared with whoever picks objects
-/// in it (the window).
-pub type SharedScene = Arc<RwLock<RenderScene>>;
+/// The G-buffers of a run's frames, shared with whoever picks objects in the shown frame's
+/// scene (the window): picking reads the same render scene the G-buffer was made from.
+pub type SharedScene = Arc<RwLock<GBufferSource>>;
 
 /// Why a frame could not be composed.
 #[derive(Debug, Error)]
 pub enum ComposeError {
-    #[error("G-buffer: {0}")]
-    GBuffer(#[from] RenderError),
+    #[error(transparent)]
+    GBuffer(#[from] GBufferError),
     #[error("reconstruction: {0}")]
     Reconstruct(#[from] ReconstructError),
     #[error("the frame's planes do not match its {width}×{height} resolution")]
     Size { width: u32, height: u32 },
-}
-
-/// Computes G-buffers on the CPU (primary rays through the BVH), reusing the render
-/// structures, once per scene-state version.
-pub struct GBufferCache {
-    assets: Arc<Assets>,
-    scene: SharedScene,
-    current: Option<(StateVersion, Arc<GBuffer>)>,
-}
-
-impl GBufferCache {
-    /// Prepares G-buffers of scenes over `assets`, starting from `state`.
-    pub fn new(assets: Arc<Assets>, state: &SceneState) -> Result<Self, RenderError> {
-        let scene = RenderScene::new(Arc::clone(&assets), state)?;
-        Ok(Self { scene: Arc::new(RwLock::new(scene)), assets, current: None })
-    }
-
-    /// The G-buffer of `state`, computed (on all cores) only when its version is new.
-    pub fn get(&mut self, state: &SceneState) -> Result<Arc<GBuffer>, RenderError> {
-        if let Some((version, g)) = &self.current {
-            if *version == state.version {
-                return Ok(Arc::clone(g));
-            }
-        }
-        let mut scene = self.scene.write().unwrap_or_else(|p| p.into_inner());
-        if scene.state().version != state.version {
-            scene.set_state(state)?;
-        }
-        let g = Arc::new(GBuffer::from_scene(&scene, &self.assets));
-        self.current = Some((state.version, Arc::clone(&g)));
-        Ok(g)
-    }
-
-    /// The render scene of the last state asked for.
-    pub fn scene(&self) -> SharedScene {
-        Arc::clone(&self.scene)
-    }
 }
 
 /// One composed frame.
@@ -85,7 +51,7 @@ pub struct Composed {
 
 /// G-buffer, reconstruction and views for a run's shown frames.
 pub struct Composer {
-    gbuffers: GBufferCache,
+    gbuffers: SharedScene,
     params: ReconstructParams,
     backend: Backend,
     reconstructor: Option<Reconstructor>,
@@ -100,17 +66,18 @@ impl Composer {
         backend: Backend,
     ) -> Result<Self, ComposeError> {
         params.validate()?;
-        Ok(Self {
-            gbuffers: GBufferCache::new(assets, state)?,
-            params,
-            backend,
-            reconstructor: None,
-        })
+        let gbuffer_backend = match backend {
+            Backend::Auto => GBufferBackend::Auto,
+            Backend::Cpu => GBufferBackend::Cpu,
+            Backend::Gpu => GBufferBackend::Gpu,
+        };
+        let source = GBufferSource::new(assets, state, gbuffer_backend)?;
+        Ok(Self { gbuffers: Arc::new(RwLock::new(source)), params, backend, reconstructor: None })
     }
 
-    /// The render scene of the last composed frame (for picking).
+    /// The G-buffer source, whose render scene is the last composed frame's (for picking).
     pub fn scene(&self) -> SharedScene {
-        self.gbuffers.scene()
+        Arc::clone(&self.gbuffers)
     }
 
     /// "cpu" or the GPU adapter's name, once the first frame chose.
@@ -126,7 +93,7 @@ impl Composer {
             Some(r) => r,
             empty => empty.insert(Reconstructor::new(width, height, self.params, self.backend)?),
         };
-        let g = self.gbuffers.get(&frame.state)?;
+        let g = self.gbuffers.write().unwrap_or_else(|p| p.into_inner()).get(&frame.state)?;
         let inputs = FrameInputs {
             frame: frame.frame,
             state_version: frame.state.version,
@@ -185,7 +152,7 @@ mod tests {
             Composer::new(assets, &state, ReconstructParams::default(), Backend::Cpu).unwrap();
         // Every other pixel lost: the final view must cover them from their neighbours.
         let f = frame(&state, |i| i % 2 == 0);
-        let g = c.gbuffers.get(&state).unwrap();
+        let g = c.gbuffers.write().unwrap().get(&state).unwrap();
         let partial = c.compose(&f, View::Partial).unwrap();
         let last = c.compose(&f, View::Final).unwrap();
         assert!(last.linear.is_some() && partial.linear.is_none());

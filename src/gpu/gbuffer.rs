@@ -142,6 +142,11 @@ impl GpuGBuffer {
         Ok(this)
     }
 
+    /// The render scene of the last state drawn (the same one the tracer would build).
+    pub fn scene(&self) -> &RenderScene {
+        &self.scene
+    }
+
     /// The adapter the pass runs on.
     pub fn adapter_name(&self) -> &str {
         &self.ctx.adapter_info.name

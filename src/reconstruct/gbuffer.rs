@@ -253,6 +253,14 @@ impl GBufferSource {
         matches!(self.engine, Engine::Gpu(_))
     }
 
+    /// The render scene of the last state asked for (picking uses the same BVH).
+    pub fn scene(&self) -> &RenderScene {
+        match &self.engine {
+            Engine::Cpu(scene) => scene,
+            Engine::Gpu(gpu) => gpu.scene(),
+        }
+    }
+
     /// Why `Auto` chose the CPU path, if it did.
     pub fn fallback_reason(&self) -> Option<&str> {
         self.fallback.as_deref()

@@ -238,7 +238,7 @@ impl Session for MasterSession {
 
     fn pick(&self, x: f32, y: f32) -> Option<u32> {
         let guard = self.scene.read().unwrap_or_else(|p| p.into_inner());
-        render::pick(&guard, x, y)
+        render::pick(guard.scene(), x, y)
     }
 
     fn refresh_status(&mut self, status: &mut StatusView) {
