@@ -171,7 +171,7 @@ impl Blas {
         for t in &tris {
             bounds = bounds.union(&t.aabb());
         }
-        let (bvh, original) = build_tri_bvh(&tris);
+        let (bvh, original) = build_tri_bvh(&tris, BvhBuildParams::medium_build());
         let tris = original
             .iter()
             .map(|&i| {
@@ -255,12 +255,13 @@ pub struct Hit {
 /// per-state world-space BVH instead of being entered through their BLAS.
 pub const FLAT_MAX_TRIANGLES: usize = 256;
 
-/// Builds a CWBVH over triangles, returning it with the leaf order.
-fn build_tri_bvh(tris: &[Triangle]) -> (CwBvh, Vec<u32>) {
+/// Builds a CWBVH over triangles, returning it with the leaf order (a triangle
+/// may appear more than once when `params` pre-split).
+fn build_tri_bvh(tris: &[Triangle], params: BvhBuildParams) -> (CwBvh, Vec<u32>) {
     if tris.is_empty() {
         return (CwBvh::default(), Vec::new());
     }
-    let bvh = build_cwbvh_from_tris(tris, BvhBuildParams::medium_build(), &mut Duration::default());
+    let bvh = build_cwbvh_from_tris(tris, params, &mut Duration::default());
     let order = bvh.primitive_indices.clone();
     (bvh, order)
 }
@@ -370,7 +371,9 @@ impl FlatGeometry {
                 owner.push((i, prim as u32));
             }
         }
-        let (bvh, order) = build_tri_bvh(&tris);
+        // At most a few hundred triangles per instance: the best (slowest) build
+        // is cheap, and every ray of the state traverses it.
+        let (bvh, order) = build_tri_bvh(&tris, BvhBuildParams::very_slow_build());
         let tris = order
             .iter()
             .map(|&k| {
