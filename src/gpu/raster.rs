@@ -109,18 +109,8 @@ pub(super) struct Targets {
 
 impl Targets {
     pub(super) fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
-        let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
         let make = |label: &str, format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+            super::texture_2d(device, label, (width, height, 1), format, usage)
         };
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
         let names = ["gbuffer position", "gbuffer normal", "gbuffer albedo", "gbuffer emission"];

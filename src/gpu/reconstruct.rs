@@ -83,16 +83,7 @@ impl Textures {
     fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
         use wgpu::TextureUsages as U;
         let make = |label: &str, format, layers: u32, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: layers },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+            super::texture_2d(device, label, (width, height, layers), format, usage)
         };
         let input = U::TEXTURE_BINDING | U::COPY_DST | U::COPY_SRC;
         let work = U::TEXTURE_BINDING | U::STORAGE_BINDING | U::COPY_SRC;
