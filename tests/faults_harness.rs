@@ -136,7 +136,18 @@ fn every_fault_of_the_list_is_survived_and_the_invariants_hold() {
 
     assert_eq!(report.invariant_violations, 0, "{:?}", report.violations);
     assert_eq!(report.master_exits, 0);
-    assert_eq!(report.worker_exits, 0, "a worker gave up instead of reconnecting");
+    // A worker gives up only on a rejection of its handshake as a wrong version or secret;
+    // a corrupting link can garble the handshake into exactly that, which the worker
+    // cannot tell from a misconfiguration. Any other exit is a worker that gave up.
+    let fatal_rejections = ["auth", "version"]
+        .iter()
+        .map(|k| report.rejected.get(*k).copied().unwrap_or(0))
+        .sum::<u64>();
+    assert!(
+        report.worker_exits <= fatal_rejections,
+        "{} workers gave up instead of reconnecting, after {fatal_rejections} version/secret rejections",
+        report.worker_exits
+    );
     assert_eq!(report.jobs_handed_twice, 0, "a job was recomputed");
     assert!(report.results_accepted <= report.jobs_handed_out);
     assert!(report.longest_gap_ms <= config().max_gap.as_millis() as u64);
