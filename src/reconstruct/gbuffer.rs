@@ -169,7 +169,7 @@ pub enum GBufferError {
 /// Which implementation computes G-buffers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GBufferBackend {
-    /// The raster pass where an adapter works, the CPU path otherwise.
+    /// The raster pass where a hardware adapter works, the CPU path otherwise.
     #[default]
     Auto,
     /// Primary rays through the tracer's BVH on all cores.
@@ -204,7 +204,8 @@ impl GBufferSource {
     ) -> Result<Self, GBufferError> {
         let ctx = match backend {
             GBufferBackend::Cpu => Ok(None),
-            _ => GpuContext::new().map(|c| Some(c.shared())),
+            GBufferBackend::Auto => GpuContext::new_hardware().map(|c| Some(c.shared())),
+            GBufferBackend::Gpu => GpuContext::new().map(|c| Some(c.shared())),
         };
         match ctx {
             Ok(ctx) => Self::with_context(assets, initial, backend, ctx),

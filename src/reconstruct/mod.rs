@@ -117,7 +117,7 @@ pub struct Reconstructed {
 pub enum Backend {
     Cpu,
     Gpu,
-    /// The GPU when an adapter exists, else the CPU.
+    /// The GPU when a hardware adapter exists, else the CPU.
     #[default]
     Auto,
 }
@@ -139,14 +139,13 @@ impl Reconstructor {
         params: ReconstructParams,
         backend: Backend,
     ) -> Result<Self, ReconstructError> {
-        let gpu = || -> Result<Self, ReconstructError> {
-            let ctx = GpuContext::new()?;
-            Ok(Self::Gpu(Box::new(GpuReconstructor::new(ctx.into(), width, height, params)?)))
+        let gpu = |ctx: Result<GpuContext, GpuError>| -> Result<Self, ReconstructError> {
+            Ok(Self::Gpu(Box::new(GpuReconstructor::new(ctx?.into(), width, height, params)?)))
         };
         match backend {
             Backend::Cpu => Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?)),
-            Backend::Gpu => gpu(),
-            Backend::Auto => gpu().or_else(|err| {
+            Backend::Gpu => gpu(GpuContext::new()),
+            Backend::Auto => gpu(GpuContext::new_hardware()).or_else(|err| {
                 tracing::info!(cause = %err, "GPU reconstruction unavailable, using the CPU");
                 Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?))
             }),
