@@ -1,8 +1,8 @@
 //! Turning a shown frame into pixels: the G-buffer of its scene state, reconstruction, and
 //! the [`View`] asked for.
 //!
-//! G-buffers come from the wgpu raster pass where an adapter exists and from primary rays
-//! on the CPU otherwise ([`GBufferSource`]), reconstruction likewise.
+//! G-buffers come from the wgpu raster pass on a hardware adapter and from primary rays on
+//! the CPU otherwise ([`GBufferSource`]); reconstruction likewise (`--reconstruct`).
 //!
 //! One composer serves both the headless sink and the window, so that what a headless
 //! master writes is exactly what the window shows. Every frame is reconstructed, whatever
@@ -17,7 +17,7 @@ use gridlight_actors::state::SceneState;
 use thiserror::Error;
 
 use crate::assets::Assets;
-use crate::reconstruct::gbuffer::{GBufferBackend, GBufferError, GBufferSource};
+use crate::reconstruct::gbuffer::{GBufferError, GBufferSource};
 use crate::reconstruct::{
     Backend, FrameInputs, ReconstructError, ReconstructParams, Reconstructor,
 };
@@ -66,12 +66,7 @@ impl Composer {
         backend: Backend,
     ) -> Result<Self, ComposeError> {
         params.validate()?;
-        let gbuffer_backend = match backend {
-            Backend::Auto => GBufferBackend::Auto,
-            Backend::Cpu => GBufferBackend::Cpu,
-            Backend::Gpu => GBufferBackend::Gpu,
-        };
-        let source = GBufferSource::new(assets, state, gbuffer_backend)?;
+        let source = GBufferSource::new(assets, state, backend)?;
         Ok(Self { gbuffers: Arc::new(RwLock::new(source)), params, backend, reconstructor: None })
     }
 

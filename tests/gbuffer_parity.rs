@@ -26,7 +26,7 @@ use std::sync::Arc;
 use glam::{Quat, Vec2, Vec3};
 use gridlight::assets::{Assets, Mesh, Texture};
 use gridlight::gpu::{GpuContext, GpuGBuffer};
-use gridlight::reconstruct::{GBuffer, GBufferBackend, GBufferSource, NO_OBJECT};
+use gridlight::reconstruct::{Backend, GBuffer, GBufferSource, NO_OBJECT};
 use gridlight::scene::{self, AssetSearchPath};
 use gridlight_actors::state::{Environment, Geometry, Light, Object, SceneState, Transform};
 
@@ -126,7 +126,7 @@ fn textured() -> (Arc<Assets>, SceneState) {
 }
 
 fn cpu_gbuffer(assets: &Arc<Assets>, state: &SceneState) -> Arc<GBuffer> {
-    let mut source = GBufferSource::new(assets.clone(), state, GBufferBackend::Cpu).expect("cpu");
+    let mut source = GBufferSource::new(assets.clone(), state, Backend::Cpu).expect("cpu");
     assert!(!source.is_gpu());
     source.get(state).expect("cpu G-buffer")
 }
@@ -304,9 +304,8 @@ fn gpu_gbuffer_matches_cpu_with_textures_transforms_and_lights() {
 fn moving_an_object_changes_the_gpu_gbuffer_where_it_was() {
     let (assets, mut state) = cornell();
     let Some(ctx) = gpu_context("moving") else { return };
-    let mut source =
-        GBufferSource::with_context(assets.clone(), &state, GBufferBackend::Gpu, Some(ctx))
-            .expect("GPU source");
+    let mut source = GBufferSource::with_context(assets.clone(), &state, Backend::Gpu, Some(ctx))
+        .expect("GPU source");
     assert!(source.is_gpu());
     let box_id = state.objects.iter().position(|o| o.name == "small-box").expect("box");
     let before = source.get(&state).expect("before");

@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use super::synthetic::{self, SyntheticView};
 use super::ReconstructParams;
-use super::{CpuReconstructor, FrameInputs, GBuffer, GBufferBackend, GBufferSource};
+use super::{Backend, CpuReconstructor, FrameInputs, GBuffer, GBufferSource};
 use crate::gpu::{GpuContext, GpuGBuffer, GpuReconstructor};
 use crate::render::testscenes;
 
@@ -132,7 +132,7 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
         }
         report.cpu_ms = median(times);
         let (assets, state) = testscenes::cornell_box(s.width, s.height);
-        let mut source = GBufferSource::new(assets, &state, GBufferBackend::Cpu)?;
+        let mut source = GBufferSource::new(assets, &state, Backend::Cpu)?;
         report.gbuffer_cpu_ms = time_gbuffers(s.frames, &state, |st| {
             source.get(st)?;
             Ok(())

@@ -13,7 +13,7 @@ use gridlight_actors::state::{SceneState, StateVersion};
 
 use rayon::prelude::*;
 
-use super::ReconstructError;
+use super::{Backend, ReconstructError};
 use crate::assets::Assets;
 use crate::gpu::{GpuContext, GpuError, GpuGBuffer};
 use crate::render::{primary_hit, PixelSample, RenderError, RenderScene};
@@ -166,18 +166,6 @@ pub enum GBufferError {
     Gpu(#[from] GpuError),
 }
 
-/// Which implementation computes G-buffers.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum GBufferBackend {
-    /// The raster pass where a hardware adapter works, the CPU path otherwise.
-    #[default]
-    Auto,
-    /// Primary rays through the tracer's BVH on all cores.
-    Cpu,
-    /// The raster pass; an error where no adapter works.
-    Gpu,
-}
-
 /// Both boxed: each holds a whole `RenderScene`.
 enum Engine {
     Cpu(Box<RenderScene>),
@@ -200,17 +188,17 @@ impl GBufferSource {
     pub fn new(
         assets: Arc<Assets>,
         initial: &SceneState,
-        backend: GBufferBackend,
+        backend: Backend,
     ) -> Result<Self, GBufferError> {
         let ctx = match backend {
-            GBufferBackend::Cpu => Ok(None),
-            GBufferBackend::Auto => GpuContext::new_hardware().map(|c| Some(c.shared())),
-            GBufferBackend::Gpu => GpuContext::new().map(|c| Some(c.shared())),
+            Backend::Cpu => Ok(None),
+            Backend::Auto => GpuContext::new_hardware().map(|c| Some(c.shared())),
+            Backend::Gpu => GpuContext::new().map(|c| Some(c.shared())),
         };
         match ctx {
             Ok(ctx) => Self::with_context(assets, initial, backend, ctx),
-            Err(err) if backend == GBufferBackend::Auto => {
-                let mut source = Self::with_context(assets, initial, GBufferBackend::Cpu, None)?;
+            Err(err) if backend == Backend::Auto => {
+                let mut source = Self::with_context(assets, initial, Backend::Cpu, None)?;
                 source.fallback = Some(err.to_string());
                 Ok(source)
             }
@@ -223,21 +211,21 @@ impl GBufferSource {
     pub fn with_context(
         assets: Arc<Assets>,
         initial: &SceneState,
-        backend: GBufferBackend,
+        backend: Backend,
         ctx: Option<Arc<GpuContext>>,
     ) -> Result<Self, GBufferError> {
         let cpu = |assets: &Arc<Assets>| -> Result<Engine, GBufferError> {
             Ok(Engine::Cpu(Box::new(RenderScene::new(Arc::clone(assets), initial)?)))
         };
         let (engine, fallback) = match (backend, ctx) {
-            (GBufferBackend::Cpu, _) => (cpu(&assets)?, None),
-            (GBufferBackend::Auto, None) => (cpu(&assets)?, Some("no GPU context".to_string())),
-            (GBufferBackend::Gpu, None) => {
+            (Backend::Cpu, _) => (cpu(&assets)?, None),
+            (Backend::Auto, None) => (cpu(&assets)?, Some("no GPU context".to_string())),
+            (Backend::Gpu, None) => {
                 return Err(GpuError::NoAdapter("no GPU context was given".into()).into())
             }
             (backend, Some(ctx)) => match GpuGBuffer::new(ctx, Arc::clone(&assets), initial) {
                 Ok(gpu) => (Engine::Gpu(Box::new(gpu)), None),
-                Err(GBufferError::Gpu(err)) if backend == GBufferBackend::Auto => {
+                Err(GBufferError::Gpu(err)) if backend == Backend::Auto => {
                     (cpu(&assets)?, Some(err.to_string()))
                 }
                 Err(err) => return Err(err),

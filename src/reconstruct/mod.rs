@@ -29,7 +29,7 @@ pub mod synthetic;
 pub mod tonemap;
 
 pub use cpu::CpuReconstructor;
-pub use gbuffer::{scene_scale, GBuffer, GBufferBackend, GBufferError, GBufferSource, NO_OBJECT};
+pub use gbuffer::{scene_scale, GBuffer, GBufferError, GBufferSource, NO_OBJECT};
 pub use params::ReconstructParams;
 
 use crate::gpu::{GpuContext, GpuError, GpuReconstructor};
@@ -112,7 +112,8 @@ pub struct Reconstructed {
     pub display: Vec<[u8; 4]>,
 }
 
-/// Which implementation to use.
+/// Which implementation to use (for reconstruction and for G-buffers alike): the CPU
+/// path, the GPU path, or the GPU only on a hardware adapter.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum Backend {
     Cpu,
