@@ -3,8 +3,8 @@
 //! It follows the oldest frame not yet displayed, asks the [`wait_heuristic`] on every
 //! progress report and at the heuristic's deadlines, then closes the frame at the
 //! assembler (late results are refused from then on), tells the scheduler, counts the
-//! frames shown with the same state version (the sink accumulates their pixels) and sends one [`ShownFrame`] per shown frame
-//! to the sink thread. Skipped frames only count.
+//! frames shown with the same state version (the sink accumulates their pixels) and
+//! sends one [`ShownFrame`] per shown frame to the sink thread. Skipped frames only count.
 //!
 //! [`wait_heuristic`]: crate::wait_heuristic
 
