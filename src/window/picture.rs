@@ -25,3 +25,15 @@ impl Picture {
         [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pixels_must_match_the_size() {
+        assert!(Picture::from_pixels(3, 1, &[[0; 4]; 2]).is_none());
+        let p = Picture::from_pixels(2, 1, &[[1, 2, 3, 4], [5, 6, 7, 8]]).expect("2×1");
+        assert_eq!(p.pixel(1, 0), [5, 6, 7, 8]);
+    }
+}
