@@ -105,32 +105,21 @@ impl Handler<JobsHandedOut> for Assembler {
 impl Handler<ResultArrived> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: ResultArrived, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |a| {
-            let r = &msg.result;
-            let verdict = a.table.accept(msg.conn, r.frame, r.set, r.state_version, &r.radiance);
+        self.guarded(ctx, move |a| {
+            let JobResult { frame, set, state_version, radiance, .. } = msg.result;
+            let verdict = a.table.accept(msg.conn, frame, set, state_version, radiance);
             let c = &a.counters;
             match verdict {
                 Verdict::Accepted { back, total } => {
                     Counters::add(&c.results_accepted, 1);
-                    a.progress_to.do_send(FrameProgress {
-                        frame: r.frame,
-                        state_version: r.state_version,
-                        back,
-                        total,
-                    });
+                    a.progress_to.do_send(FrameProgress { frame, state_version, back, total });
                 }
                 Verdict::Late => Counters::add(&c.dropped_late, 1),
                 Verdict::Duplicate => Counters::add(&c.dropped_duplicate, 1),
                 Verdict::Unknown => Counters::add(&c.dropped_unknown, 1),
             }
             if !matches!(verdict, Verdict::Accepted { .. }) {
-                tracing::debug!(
-                    conn = msg.conn,
-                    frame = r.frame,
-                    set = r.set,
-                    ?verdict,
-                    "result dropped"
-                );
+                tracing::debug!(conn = msg.conn, frame, set, ?verdict, "result dropped");
             }
         });
     }

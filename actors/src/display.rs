@@ -21,7 +21,7 @@ use crate::assembler::{CloseFrame, FrameProgress};
 use crate::frame_table::ClosedFrame;
 use crate::protocol::FrameNo;
 use crate::scheduler::{FrameDisplayed, FramesAbandoned};
-use crate::sink::{spawn_sink, FrameSink, ShownFrame, SinkOutcome};
+use crate::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
 use crate::stats::{Counters, FrameStats};
 use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
@@ -87,7 +87,7 @@ pub struct Display {
     /// Heuristic deadline timer.
     timer: Option<SpawnHandle>,
     sink: Option<Box<dyn FrameSink>>,
-    sink_tx: Option<SyncSender<ShownFrame>>,
+    sink_tx: Option<SyncSender<PackedShownFrame>>,
     sink_thread: Option<JoinHandle<()>>,
     sink_in_flight: usize,
     close_to: Recipient<CloseFrame>,
@@ -344,11 +344,10 @@ impl Display {
             shown: self.shown,
             accumulated_frames: self.accum.frames(),
         };
-        let frame = ShownFrame {
+        let frame = PackedShownFrame {
             frame: closed.frame,
             state: closed.state,
-            current: closed.radiance,
-            current_mask: closed.mask,
+            results: closed.results,
             stats: stats.clone(),
         };
         if let Some(tx) = &self.sink_tx {

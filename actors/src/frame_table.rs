@@ -4,14 +4,13 @@
 //! handed out to that very connection and not yet answered; everything else is dropped
 //! and counted as late (its frame was displayed), duplicate (already answered) or
 //! unknown (never handed to that connection, or a frame never scheduled). Accepted
-//! radiance is scattered to the set's pixels at once, so closing a frame is cheap.
+//! radiance is kept packed, as it arrived ([`PackedFrame`]): accepting costs no pixel
+//! work, and only shown frames are ever unpacked.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use glam::Vec3;
-
-use crate::packing::decode_rgb9e5;
+use crate::packed_frame::PackedFrame;
 use crate::protocol::{FrameNo, PackedRadiance, SetNo};
 use crate::sets::SetTable;
 use crate::state::{SceneState, StateVersion};
@@ -45,10 +44,8 @@ pub struct Dropped {
 pub struct ClosedFrame {
     pub frame: FrameNo,
     pub state: Arc<SceneState>,
-    /// Radiance per pixel; meaningful where `mask` is set.
-    pub radiance: Vec<Vec3>,
-    /// Pixels covered by an accepted result of this frame.
-    pub mask: Vec<bool>,
+    /// The accepted results.
+    pub results: PackedFrame,
     pub back: u32,
     pub total: u32,
 }
@@ -60,9 +57,7 @@ struct Slot {
     holder: Vec<Option<ConnId>>,
     answered: Vec<bool>,
     back: u32,
-    /// Allocated on the first accepted result.
-    radiance: Vec<Vec3>,
-    mask: Vec<bool>,
+    results: PackedFrame,
 }
 
 /// The frames scheduled and not yet displayed.
@@ -100,8 +95,7 @@ impl FrameTable {
             holder: vec![None; s],
             answered: vec![false; s],
             back: 0,
-            radiance: Vec::new(),
-            mask: Vec::new(),
+            results: PackedFrame::new(self.sets.clone()),
         });
     }
 
@@ -115,15 +109,14 @@ impl FrameTable {
         }
     }
 
-    /// Judges one result and, when accepted, scatters its radiance. The caller has
-    /// checked that the radiance holds exactly one pixel per pixel of the set.
+    /// Judges one result and, when accepted, keeps its radiance.
     pub fn accept(
         &mut self,
         conn: ConnId,
         frame: FrameNo,
         set: SetNo,
         version: StateVersion,
-        radiance: &PackedRadiance,
+        radiance: PackedRadiance,
     ) -> Verdict {
         let verdict = self.judge(conn, frame, set, version, radiance);
         match verdict {
@@ -141,15 +134,14 @@ impl FrameTable {
         frame: FrameNo,
         set: SetNo,
         version: StateVersion,
-        radiance: &PackedRadiance,
+        radiance: PackedRadiance,
     ) -> Verdict {
         if self.is_closed(frame) {
             return Verdict::Late;
         }
-        let pixels = match self.sets.pixels(set) {
-            Some(p) if p.len() == radiance.len() => p,
-            _ => return Verdict::Unknown,
-        };
+        if self.sets.pixels(set).is_none_or(|p| p.len() != radiance.len()) {
+            return Verdict::Unknown;
+        }
         let Some(slot) = self.frames.get_mut(&frame) else { return Verdict::Unknown };
         let i = set as usize;
         if slot.holder[i] != Some(conn) || slot.state.version != version {
@@ -160,16 +152,8 @@ impl FrameTable {
         }
         slot.answered[i] = true;
         slot.back += 1;
-        if slot.radiance.is_empty() {
-            let n = self.sets.resolution().pixels();
-            slot.radiance = vec![Vec3::ZERO; n];
-            slot.mask = vec![false; n];
-        }
-        let PackedRadiance::Rgb9e5(packed) = radiance;
-        for (p, v) in pixels.iter().zip(packed) {
-            slot.radiance[*p as usize] = decode_rgb9e5(*v);
-            slot.mask[*p as usize] = true;
-        }
+        let PackedRadiance::Rgb9e5(words) = radiance;
+        slot.results.insert(set, words);
         Verdict::Accepted { back: slot.back, total: slot.holder.len() as u32 }
     }
 
@@ -183,17 +167,10 @@ impl FrameTable {
         // Earlier frames still open were passed over: they are displayed too.
         self.frames.retain(|f, _| *f >= frame);
         let slot = self.frames.remove(&frame)?;
-        let n = self.sets.resolution().pixels();
-        let (radiance, mask) = if slot.radiance.is_empty() {
-            (vec![Vec3::ZERO; n], vec![false; n])
-        } else {
-            (slot.radiance, slot.mask)
-        };
         Some(ClosedFrame {
             frame,
             state: slot.state,
-            radiance,
-            mask,
+            results: slot.results,
             back: slot.back,
             total: slot.holder.len() as u32,
         })
@@ -225,6 +202,7 @@ mod tests {
     use crate::packing::{encode_rgb9e5, pack};
     use crate::protocol::{Partition, SetsConfig};
     use crate::state::Resolution;
+    use glam::Vec3;
 
     fn table() -> FrameTable {
         let sets = SetTable::new(
@@ -245,13 +223,17 @@ mod tests {
         t.open(0, state(3));
         assert!(!t.handed_out(0, 1, 7));
         assert!(!t.handed_out(0, 2, 7), "another set of the same frame is no re-hand-out");
-        assert_eq!(t.accept(7, 0, 1, 3, &radiance(2.0)), Verdict::Accepted { back: 1, total: 4 });
-        assert_eq!(t.accept(7, 0, 1, 3, &radiance(2.0)), Verdict::Duplicate);
+        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Verdict::Accepted { back: 1, total: 4 });
+        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Verdict::Duplicate);
         let closed = t.close(0).expect("open frame");
         assert_eq!(closed.back, 1);
-        let covered: Vec<usize> = (0..64).filter(|p| closed.mask[*p]).collect();
-        assert_eq!(covered.len(), 16);
-        assert!(covered.iter().all(|p| closed.radiance[*p] == Vec3::splat(2.0)));
+        let (radiance, mask) = closed.results.unpack();
+        let covered: Vec<usize> = (0..64).filter(|p| mask[*p]).collect();
+        assert_eq!(
+            covered,
+            t.sets.pixels(1).unwrap().iter().map(|p| *p as usize).collect::<Vec<_>>()
+        );
+        assert!(covered.iter().all(|p| radiance[*p] == Vec3::splat(2.0)));
         assert_eq!(t.dropped(), Dropped { late: 0, duplicate: 1, unknown: 0 });
     }
 
@@ -269,13 +251,13 @@ mod tests {
         let mut t = table();
         t.open(0, state(3));
         t.handed_out(0, 1, 7);
-        assert_eq!(t.accept(8, 0, 1, 3, &radiance(1.0)), Verdict::Unknown, "other connection");
-        assert_eq!(t.accept(7, 0, 2, 3, &radiance(1.0)), Verdict::Unknown, "set not handed out");
-        assert_eq!(t.accept(7, 0, 1, 4, &radiance(1.0)), Verdict::Unknown, "wrong version");
-        assert_eq!(t.accept(7, 5, 1, 3, &radiance(1.0)), Verdict::Unknown, "frame never opened");
-        assert_eq!(t.accept(7, 0, 9, 3, &radiance(1.0)), Verdict::Unknown, "no such set");
+        assert_eq!(t.accept(8, 0, 1, 3, radiance(1.0)), Verdict::Unknown, "other connection");
+        assert_eq!(t.accept(7, 0, 2, 3, radiance(1.0)), Verdict::Unknown, "set not handed out");
+        assert_eq!(t.accept(7, 0, 1, 4, radiance(1.0)), Verdict::Unknown, "wrong version");
+        assert_eq!(t.accept(7, 5, 1, 3, radiance(1.0)), Verdict::Unknown, "frame never opened");
+        assert_eq!(t.accept(7, 0, 9, 3, radiance(1.0)), Verdict::Unknown, "no such set");
         let short = PackedRadiance::Rgb9e5(vec![encode_rgb9e5(Vec3::ONE); 3]);
-        assert_eq!(t.accept(7, 0, 1, 3, &short), Verdict::Unknown, "wrong pixel count");
+        assert_eq!(t.accept(7, 0, 1, 3, short.clone()), Verdict::Unknown, "wrong pixel count");
         assert_eq!(t.dropped().unknown, 6);
         assert_eq!(t.progress(0), Some((0, 4)));
     }
@@ -288,9 +270,9 @@ mod tests {
         t.handed_out(0, 0, 1);
         t.handed_out(1, 0, 1);
         let closed = t.close(1).expect("frame 1");
-        assert!(closed.mask.iter().all(|m| !m));
-        assert_eq!(t.accept(1, 0, 0, 1, &radiance(1.0)), Verdict::Late, "passed-over frame");
-        assert_eq!(t.accept(1, 1, 0, 1, &radiance(1.0)), Verdict::Late);
+        assert!(closed.results.unpack().1.iter().all(|m| !m));
+        assert_eq!(t.accept(1, 0, 0, 1, radiance(1.0)), Verdict::Late, "passed-over frame");
+        assert_eq!(t.accept(1, 1, 0, 1, radiance(1.0)), Verdict::Late);
         assert!(t.close(0).is_none() && t.close(1).is_none());
         t.open(1, state(1));
         assert_eq!(t.open_frames(), 0, "a displayed frame was reopened");

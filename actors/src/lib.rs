@@ -30,6 +30,7 @@ pub mod integrity;
 pub mod job_queue;
 pub mod listener;
 pub mod master;
+pub mod packed_frame;
 pub mod packing;
 pub mod protocol;
 pub mod scene_holder;

@@ -12,6 +12,7 @@ use std::thread::JoinHandle;
 use glam::Vec3;
 use thiserror::Error;
 
+use crate::packed_frame::PackedFrame;
 use crate::protocol::FrameNo;
 use crate::state::SceneState;
 use crate::stats::FrameStats;
@@ -28,6 +29,30 @@ pub struct ShownFrame {
     /// Pixels covered by a result of this frame.
     pub current_mask: Vec<bool>,
     pub stats: FrameStats,
+}
+
+/// A shown frame on its way to the sink thread, its results still packed: unpacking
+/// them is the sink thread's work, not the actor system's.
+#[derive(Debug)]
+pub struct PackedShownFrame {
+    pub frame: FrameNo,
+    pub state: Arc<SceneState>,
+    pub results: PackedFrame,
+    pub stats: FrameStats,
+}
+
+impl PackedShownFrame {
+    /// The frame with per-pixel radiance and coverage.
+    pub fn unpack(self) -> ShownFrame {
+        let (current, current_mask) = self.results.unpack();
+        ShownFrame {
+            frame: self.frame,
+            state: self.state,
+            current,
+            current_mask,
+            stats: self.stats,
+        }
+    }
 }
 
 /// Why a sink could not take a frame; the master stops when its sink fails.
@@ -52,19 +77,19 @@ pub trait FrameSink: Send + 'static {
 /// What the sink thread reports back after each frame.
 pub type SinkOutcome = Result<(), String>;
 
-/// Starts the sink thread: it shows every frame received on the returned sender and
+/// Starts the sink thread: it unpacks and shows every frame received on the returned sender and
 /// calls `done` after each; when the sender is dropped it calls `finish` and ends.
 pub fn spawn_sink(
     mut sink: Box<dyn FrameSink>,
     capacity: usize,
     done: impl Fn(SinkOutcome) + Send + 'static,
-) -> std::io::Result<(SyncSender<ShownFrame>, JoinHandle<()>)> {
-    let (tx, rx): (SyncSender<ShownFrame>, Receiver<ShownFrame>) =
+) -> std::io::Result<(SyncSender<PackedShownFrame>, JoinHandle<()>)> {
+    let (tx, rx): (SyncSender<PackedShownFrame>, Receiver<PackedShownFrame>) =
         std::sync::mpsc::sync_channel(capacity);
     let thread = std::thread::Builder::new().name("gridlight-sink".into()).spawn(move || {
         while let Ok(frame) = rx.recv() {
             let n = frame.frame;
-            let outcome = match contain(|| sink.show(frame)) {
+            let outcome = match contain(|| sink.show(frame.unpack())) {
                 Ok(Ok(())) => Ok(()),
                 Ok(Err(e)) => Err(format!("frame sink failed on frame {n}: {e}")),
                 Err(panic) => Err(format!("frame sink panicked on frame {n}: {panic}")),
