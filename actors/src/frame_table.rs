@@ -55,7 +55,6 @@ struct Slot {
     state: Arc<SceneState>,
     /// Connection each set was handed to.
     holder: Vec<Option<ConnId>>,
-    answered: Vec<bool>,
     back: u32,
     results: PackedFrame,
 }
@@ -93,7 +92,6 @@ impl FrameTable {
         self.frames.entry(frame).or_insert(Slot {
             state,
             holder: vec![None; s],
-            answered: vec![false; s],
             back: 0,
             results: PackedFrame::new(self.sets.clone()),
         });
@@ -143,14 +141,12 @@ impl FrameTable {
             return Verdict::Unknown;
         }
         let Some(slot) = self.frames.get_mut(&frame) else { return Verdict::Unknown };
-        let i = set as usize;
-        if slot.holder[i] != Some(conn) || slot.state.version != version {
+        if slot.holder[set as usize] != Some(conn) || slot.state.version != version {
             return Verdict::Unknown;
         }
-        if slot.answered[i] {
+        if slot.results.contains(set) {
             return Verdict::Duplicate;
         }
-        slot.answered[i] = true;
         slot.back += 1;
         let PackedRadiance::Rgb9e5(words) = radiance;
         slot.results.insert(set, words);

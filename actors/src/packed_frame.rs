@@ -39,6 +39,11 @@ impl PackedFrame {
         self.results[set as usize] = Some(words);
     }
 
+    /// Whether set `set`'s words are in.
+    pub fn contains(&self, set: SetNo) -> bool {
+        self.results.get(set as usize).is_some_and(Option::is_some)
+    }
+
     /// Per-pixel radiance (zero where no result covers the pixel) and coverage.
     pub fn unpack(&self) -> (Vec<Vec3>, Vec<bool>) {
         let n = self.sets.resolution().pixels();
