@@ -1,18 +1,24 @@
 //! The CPU reference reconstructor: the whole pipeline with rayon, for tests and for
 //! headless masters without an adapter.
+//!
+//! The passes work on planes with a border (`super::planes`). The G-buffer is split into
+//! planes once per frame and shared by every filter; the history ring keeps each past
+//! frame's planes, and a frame enters the ring by swapping buffers with the slot it
+//! replaces (whose buffers become the next frame's), so nothing is copied.
 
 use glam::{Vec3, Vec4};
 
 use super::history::{Accumulation, HistoryRing};
-use super::passes::{self, Guide, PassConsts, PastFrame};
+use super::passes::{self, FillInputs, Outputs, PassConsts, PastFrame};
+use super::planes::{GuidePlanes, Layout, Planes3};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
 
 /// One previous frame kept for the temporal filter.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug)]
 struct Past {
-    radiance: Vec<Vec3>,
-    normal: Vec<Vec3>,
-    position: Vec<Vec3>,
+    /// Filled radiance.
+    radiance: Planes3,
+    guide: GuidePlanes,
 }
 
 /// Reconstructs frames of one size on the CPU, keeping accumulation and history between
@@ -22,14 +28,18 @@ pub struct CpuReconstructor {
     width: u32,
     height: u32,
     params: ReconstructParams,
+    layout: Layout,
     accumulation: Accumulation,
     /// rgb: sum of samples since the last state change; w: their number.
     accum: Vec<Vec4>,
     ring: HistoryRing,
     past: Vec<Past>,
-    filled: Vec<Vec3>,
-    blended: Vec<Vec3>,
-    filtered: Vec<Vec3>,
+    /// This frame's G-buffer.
+    guide: GuidePlanes,
+    fill_inputs: FillInputs,
+    filled: Planes3,
+    blended: Planes3,
+    filtered: Planes3,
 }
 
 impl CpuReconstructor {
@@ -40,18 +50,26 @@ impl CpuReconstructor {
     ) -> Result<Self, ReconstructError> {
         params.validate()?;
         let n = width as usize * height as usize;
+        let pad = params.radius.max(params.gauss_radius() as u32) as usize;
+        let layout = Layout::new(width, height, pad);
         let ring = HistoryRing::new(params.history);
+        let past = (0..ring.capacity())
+            .map(|_| Past { radiance: layout.zeroed3(), guide: GuidePlanes::new(&layout) })
+            .collect();
         Ok(Self {
             width,
             height,
             params,
+            layout,
             accumulation: Accumulation::default(),
             accum: vec![Vec4::ZERO; n],
-            past: vec![Past::default(); ring.capacity()],
             ring,
-            filled: vec![Vec3::ZERO; n],
-            blended: vec![Vec3::ZERO; n],
-            filtered: vec![Vec3::ZERO; n],
+            past,
+            guide: GuidePlanes::new(&layout),
+            fill_inputs: FillInputs::new(&layout),
+            filled: layout.zeroed3(),
+            blended: layout.zeroed3(),
+            filtered: layout.zeroed3(),
         })
     }
 
@@ -64,53 +82,47 @@ impl CpuReconstructor {
         inputs.validate(self.width, self.height)?;
         let g = inputs.gbuffer;
         let c = PassConsts::new(self.width, self.height, &self.params, g.scene_scale);
-        let guide = Guide { normal: &g.normal, position: &g.position };
+        let layout = &self.layout;
         let (reset, mode) = self.accumulation.begin(inputs.state_version);
 
+        self.guide.split(&g.normal, &g.position, layout);
         passes::accumulate(reset, inputs.radiance, inputs.mask, &mut self.accum, self.width);
-        passes::fill(&self.accum, guide, &c, &mut self.filled);
+        passes::fill(&self.accum, &self.guide, &c, layout, &mut self.fill_inputs, &mut self.filled);
         let result = if mode == Mode::Interacting {
             let weights = self.ring.weights(inputs.frame);
             let past: Vec<PastFrame> = self
                 .past
                 .iter()
                 .zip(weights)
-                .filter(|(p, w)| *w > 0.0 && !p.radiance.is_empty())
-                .map(|(p, weight)| PastFrame {
-                    weight,
-                    radiance: &p.radiance,
-                    guide: Guide { normal: &p.normal, position: &p.position },
-                })
+                .filter(|(_, w)| *w > 0.0)
+                .map(|(p, weight)| PastFrame { weight, radiance: &p.radiance, guide: &p.guide })
                 .collect();
-            passes::temporal(&self.filled, guide, &past, &c, &mut self.blended);
-            passes::gaussian(&self.blended, guide, &c, &mut self.filtered);
+            passes::temporal(&self.filled, &self.guide, &past, &c, layout, &mut self.blended);
+            passes::gaussian(&self.blended, &self.guide, &c, layout, &mut self.filtered);
             &self.filtered
         } else {
             &self.filled
         };
 
-        let n = result.len();
+        let n = g.len();
         let mut out = Reconstructed {
             frame: inputs.frame,
             mode,
-            radiance: result.clone(),
+            radiance: vec![Vec3::ZERO; n],
             colour: vec![Vec3::ZERO; n],
             display: vec![[0; 4]; n],
         };
-        passes::remodulate(
-            &out.radiance,
-            &g.albedo,
-            &g.emission,
-            &c,
-            &mut out.colour,
-            &mut out.display,
-        );
+        let outputs = Outputs {
+            radiance: &mut out.radiance,
+            colour: &mut out.colour,
+            display: &mut out.display,
+        };
+        passes::remodulate(result, layout, &g.albedo, &g.emission, &c, outputs);
 
         if let Some(slot) = self.ring.push(inputs.frame) {
             let p = &mut self.past[slot];
-            p.radiance.clone_from(&self.filled);
-            p.normal.clone_from(&g.normal);
-            p.position.clone_from(&g.position);
+            std::mem::swap(&mut p.radiance, &mut self.filled);
+            std::mem::swap(&mut p.guide, &mut self.guide);
         }
         Ok(out)
     }

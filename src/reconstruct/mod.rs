@@ -21,10 +21,14 @@ use gridlight_actors::state::StateVersion;
 pub mod bench;
 pub mod cpu;
 pub mod discontinuity;
+mod fill;
+mod gaussian;
 pub mod gbuffer;
 pub mod history;
 pub mod params;
 pub mod passes;
+pub mod planes;
+pub mod simd;
 pub mod synthetic;
 pub mod tonemap;
 
