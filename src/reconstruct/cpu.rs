@@ -6,7 +6,8 @@
 //! frame's planes, and a frame enters the ring by swapping buffers with the slot it
 //! replaces (whose buffers become the next frame's), so nothing is copied.
 
-use glam::{Vec3, Vec4};
+use bytemuck::Zeroable;
+use glam::Vec4;
 
 use super::history::{Accumulation, HistoryRing};
 use super::passes::{self, FillInputs, Outputs, PassConsts, PastFrame};
@@ -79,6 +80,25 @@ impl CpuReconstructor {
 
     /// Runs the pipeline on one frame (see the module doc of `reconstruct`).
     pub fn reconstruct(&mut self, inputs: &FrameInputs) -> Result<Reconstructed, ReconstructError> {
+        let mut out = Reconstructed {
+            frame: inputs.frame,
+            mode: Mode::Interacting,
+            radiance: Vec::new(),
+            colour: Vec::new(),
+            display: Vec::new(),
+        };
+        self.reconstruct_into(inputs, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Self::reconstruct`] into `out`, reusing its buffers: a caller that keeps one
+    /// `Reconstructed` from frame to frame allocates nothing per frame. On an error `out` is
+    /// unchanged.
+    pub fn reconstruct_into(
+        &mut self,
+        inputs: &FrameInputs,
+        out: &mut Reconstructed,
+    ) -> Result<(), ReconstructError> {
         inputs.validate(self.width, self.height)?;
         let g = inputs.gbuffer;
         let c = PassConsts::new(self.width, self.height, &self.params, g.scene_scale);
@@ -104,18 +124,12 @@ impl CpuReconstructor {
             &self.filled
         };
 
+        (out.frame, out.mode) = (inputs.frame, mode);
         let n = g.len();
-        let mut out = Reconstructed {
-            frame: inputs.frame,
-            mode,
-            radiance: vec![Vec3::ZERO; n],
-            colour: vec![Vec3::ZERO; n],
-            display: vec![[0; 4]; n],
-        };
         let outputs = Outputs {
-            radiance: &mut out.radiance,
-            colour: &mut out.colour,
-            display: &mut out.display,
+            radiance: sized(&mut out.radiance, n),
+            colour: sized(&mut out.colour, n),
+            display: sized(&mut out.display, n),
         };
         passes::remodulate(result, layout, &g.albedo, &g.emission, &c, outputs);
 
@@ -124,6 +138,56 @@ impl CpuReconstructor {
             std::mem::swap(&mut p.radiance, &mut self.filled);
             std::mem::swap(&mut p.guide, &mut self.guide);
         }
-        Ok(out)
+        Ok(())
+    }
+}
+
+/// `v` with `n` entries to be overwritten: as it is when it has them, else new zeroed
+/// memory (which the OS maps lazily, so the threads that write it fault it in, in parallel).
+fn sized<T: Zeroable>(v: &mut Vec<T>, n: usize) -> &mut [T] {
+    if v.len() != n {
+        *v = bytemuck::zeroed_vec(n);
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reconstruct::synthetic::{self, SyntheticView};
+
+    #[test]
+    fn reconstruct_into_reuses_its_buffers_and_matches_reconstruct() {
+        let (w, h) = (24, 16);
+        let g = synthetic::gbuffer(w, h, SyntheticView::default());
+        let radiance = synthetic::noisy_radiance(&synthetic::clean_radiance(&g), 0.5, 1, 1);
+        let masks: Vec<_> = (0..5).map(|k| synthetic::random_mask(g.len(), 0.7, 1, k)).collect();
+        let inputs = |frame: u64| FrameInputs {
+            frame,
+            state_version: frame / 2,
+            radiance: &radiance,
+            mask: &masks[frame as usize],
+            gbuffer: &g,
+        };
+        let params = ReconstructParams::default();
+        let (mut into, mut fresh) = (CpuReconstructor::new(w, h, params).expect("valid"), None);
+        let mut out = into.reconstruct(&inputs(0)).expect("frame 0");
+        let buffer = out.radiance.as_ptr();
+        for frame in 1..5 {
+            let reference = fresh.get_or_insert_with(|| {
+                let mut r = CpuReconstructor::new(w, h, params).expect("valid");
+                r.reconstruct(&inputs(0)).expect("frame 0");
+                r
+            });
+            let want = reference.reconstruct(&inputs(frame)).expect("frame");
+            into.reconstruct_into(&inputs(frame), &mut out).expect("frame");
+            assert_eq!((out.frame, out.mode), (want.frame, want.mode));
+            assert_eq!((&out.radiance, &out.colour), (&want.radiance, &want.colour));
+            assert_eq!(out.display, want.display);
+            assert_eq!(out.radiance.as_ptr(), buffer, "the buffer is reused");
+        }
+        let short = FrameInputs { frame: 5, mask: &masks[0][1..], ..inputs(4) };
+        into.reconstruct_into(&short, &mut out).expect_err("a short mask");
+        assert_eq!(out.frame, 4, "an error leaves the output as it was");
     }
 }

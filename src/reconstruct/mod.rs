@@ -17,6 +17,7 @@
 use glam::Vec3;
 use gridlight_actors::protocol::FrameNo;
 use gridlight_actors::state::StateVersion;
+use rayon::prelude::*;
 
 pub mod bench;
 pub mod cpu;
@@ -82,9 +83,9 @@ impl FrameInputs<'_> {
         }
         let bad = self
             .radiance
-            .iter()
+            .par_iter()
             .zip(self.mask)
-            .position(|(v, &m)| m && !(v.is_finite() && v.min_element() >= 0.0));
+            .position_first(|(v, &m)| m && !(v.is_finite() && v.min_element() >= 0.0));
         match bad {
             Some(pixel) => {
                 Err(ReconstructError::BadRadiance { pixel, value: self.radiance[pixel] })
