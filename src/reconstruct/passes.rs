@@ -121,7 +121,7 @@ struct TemporalPass<'a> {
 /// Chunks of [`LANES`] pixels that the temporal filter blends together, one past frame
 /// after the other: a few long runs through each frame's planes, which the hardware
 /// prefetchers follow, rather than a dozen planes at every pixel.
-const SEGMENT: usize = 32;
+const SEGMENT: usize = 128;
 
 impl RowKernel<PlaneRow<'_>> for TemporalPass<'_> {
     type Scratch = ();
