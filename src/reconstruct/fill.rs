@@ -36,12 +36,12 @@ impl FillInputs {
     fn prepare(&mut self, accum: &[Vec4], guide: &GuidePlanes, layout: &Layout) {
         let Self { mean: [m0, m1, m2], calc, surf_calc } = self;
         let planes = [m0, m1, m2, calc, surf_calc].map(|p| p.as_mut_slice());
-        let w = layout.width;
+        let (w, normal) = (layout.width, view(&guide.normal));
         image_rows(planes, layout).into_par_iter().for_each(|(y, [m0, m1, m2, calc, surf])| {
             let base = layout.index(0, y);
             for (x, a) in accum[y * w..(y + 1) * w].iter().enumerate() {
                 let (m, has, surface) = if a.w > 0.0 {
-                    (a.truncate() / a.w, 1.0, is_surface(at(&guide.normal, base + x)))
+                    (a.truncate() / a.w, 1.0, is_surface(at(&normal, base + x)))
                 } else {
                     (Vec3::ZERO, 0.0, false)
                 };
@@ -123,6 +123,8 @@ impl RowKernel<PlaneRow<'_>> for FillPass<'_> {
 
     #[inline(always)]
     fn row<I: Isa>(&self, y: usize, [r, g, b]: PlaneRow<'_>, _: &mut ()) {
+        // The unchecked loads in `weighted_sum` rely on it.
+        assert!(y < self.layout.height, "row {y} is outside the image");
         let base = self.layout.index(0, y);
         for (x, ((r, g), b)) in r.iter_mut().zip(g).zip(b).enumerate() {
             let i = base + x;

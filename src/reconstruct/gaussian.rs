@@ -94,7 +94,7 @@ struct GaussianPass<'a> {
 }
 
 /// The weights of the last radius + 1 rows a thread computed.
-pub struct Ring {
+struct Ring {
     weights: Vec<f32>,
     /// The last row computed; rows up to radius above it are in the ring too.
     last: Option<usize>,
@@ -150,6 +150,8 @@ impl RowKernel<PlaneRow<'_>> for GaussianPass<'_> {
 
     #[inline(always)]
     fn row<I: Isa>(&self, y: usize, mut out: PlaneRow<'_>, ring: &mut Ring) {
+        // The unchecked loads below and in `weigh` rely on it.
+        assert!(y < self.layout.height, "row {y} is outside the image");
         // This row's weights, and those of the rows above unless this thread has just
         // computed them.
         let continuing = y > 0 && ring.last == Some(y - 1);
