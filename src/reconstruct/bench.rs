@@ -3,9 +3,10 @@
 //!
 //! Every timed frame starts a new scene state, so each runs the whole interacting
 //! pipeline (accumulate, fill, temporal with a full history, Gaussian, remodulate). CPU
-//! time is wall-clock time of `reconstruct`; GPU time comes from timestamps written at the
-//! start of the first pass and the end of the last (uploads and readback excluded; they
-//! are in `gpu_wall_ms`).
+//! time is wall-clock time of `CpuReconstructor::reconstruct_into`, with the output
+//! buffers reused from frame to frame as a frame loop would; GPU time comes from
+//! timestamps written at the start of the first pass and the end of the last (uploads and
+//! readback excluded; they are in `gpu_wall_ms`).
 //!
 //! The G-buffer is timed on the built-in Cornell box at the same size, a new scene-state
 //! version per frame: `gbuffer_ms` for the raster pass, `gbuffer_cpu_ms` for the CPU path
@@ -122,10 +123,11 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
     };
     if s.cpu {
         let mut r = CpuReconstructor::new(s.width, s.height, s.params)?;
+        let mut out = r.reconstruct(&frame(0))?;
         let mut times = Vec::new();
-        for k in 0..warmup + s.frames as u64 {
+        for k in 1..warmup + s.frames as u64 {
             let t = Instant::now();
-            r.reconstruct(&frame(k))?;
+            r.reconstruct_into(&frame(k), &mut out)?;
             if k >= warmup {
                 times.push(t.elapsed().as_secs_f64() * 1e3);
             }

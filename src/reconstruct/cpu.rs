@@ -1,18 +1,25 @@
 //! The CPU reference reconstructor: the whole pipeline with rayon, for tests and for
 //! headless masters without an adapter.
+//!
+//! The passes work on planes with a border (`super::planes`). The G-buffer is split into
+//! planes once per frame and shared by every filter; the history ring keeps each past
+//! frame's planes, and a frame enters the ring by swapping buffers with the slot it
+//! replaces (whose buffers become the next frame's), so nothing is copied.
 
-use glam::{Vec3, Vec4};
+use bytemuck::Zeroable;
+use glam::Vec4;
 
 use super::history::{Accumulation, HistoryRing};
-use super::passes::{self, Guide, PassConsts, PastFrame};
+use super::passes::{self, FillInputs, Outputs, PassConsts, PastFrame};
+use super::planes::{GuidePlanes, Layout, Planes3};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
 
 /// One previous frame kept for the temporal filter.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug)]
 struct Past {
-    radiance: Vec<Vec3>,
-    normal: Vec<Vec3>,
-    position: Vec<Vec3>,
+    /// Filled radiance.
+    radiance: Planes3,
+    guide: GuidePlanes,
 }
 
 /// Reconstructs frames of one size on the CPU, keeping accumulation and history between
@@ -22,14 +29,18 @@ pub struct CpuReconstructor {
     width: u32,
     height: u32,
     params: ReconstructParams,
+    layout: Layout,
     accumulation: Accumulation,
     /// rgb: sum of samples since the last state change; w: their number.
     accum: Vec<Vec4>,
     ring: HistoryRing,
     past: Vec<Past>,
-    filled: Vec<Vec3>,
-    blended: Vec<Vec3>,
-    filtered: Vec<Vec3>,
+    /// This frame's G-buffer.
+    guide: GuidePlanes,
+    fill_inputs: FillInputs,
+    filled: Planes3,
+    blended: Planes3,
+    filtered: Planes3,
 }
 
 impl CpuReconstructor {
@@ -40,18 +51,26 @@ impl CpuReconstructor {
     ) -> Result<Self, ReconstructError> {
         params.validate()?;
         let n = width as usize * height as usize;
+        let pad = params.radius.max(params.gauss_radius() as u32) as usize;
+        let layout = Layout::new(width, height, pad);
         let ring = HistoryRing::new(params.history);
+        let past = (0..ring.capacity())
+            .map(|_| Past { radiance: layout.zeroed3(), guide: GuidePlanes::new(&layout) })
+            .collect();
         Ok(Self {
             width,
             height,
             params,
+            layout,
             accumulation: Accumulation::default(),
             accum: vec![Vec4::ZERO; n],
-            past: vec![Past::default(); ring.capacity()],
             ring,
-            filled: vec![Vec3::ZERO; n],
-            blended: vec![Vec3::ZERO; n],
-            filtered: vec![Vec3::ZERO; n],
+            past,
+            guide: GuidePlanes::new(&layout),
+            fill_inputs: FillInputs::new(&layout),
+            filled: layout.zeroed3(),
+            blended: layout.zeroed3(),
+            filtered: layout.zeroed3(),
         })
     }
 
@@ -61,57 +80,114 @@ impl CpuReconstructor {
 
     /// Runs the pipeline on one frame (see the module doc of `reconstruct`).
     pub fn reconstruct(&mut self, inputs: &FrameInputs) -> Result<Reconstructed, ReconstructError> {
+        let mut out = Reconstructed {
+            frame: inputs.frame,
+            mode: Mode::Interacting,
+            radiance: Vec::new(),
+            colour: Vec::new(),
+            display: Vec::new(),
+        };
+        self.reconstruct_into(inputs, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Self::reconstruct`] into `out`, reusing its buffers: a caller that keeps one
+    /// `Reconstructed` from frame to frame allocates nothing per frame. On an error `out` is
+    /// unchanged.
+    pub fn reconstruct_into(
+        &mut self,
+        inputs: &FrameInputs,
+        out: &mut Reconstructed,
+    ) -> Result<(), ReconstructError> {
         inputs.validate(self.width, self.height)?;
         let g = inputs.gbuffer;
         let c = PassConsts::new(self.width, self.height, &self.params, g.scene_scale);
-        let guide = Guide { normal: &g.normal, position: &g.position };
+        let layout = &self.layout;
         let (reset, mode) = self.accumulation.begin(inputs.state_version);
 
+        self.guide.split(&g.normal, &g.position, layout);
         passes::accumulate(reset, inputs.radiance, inputs.mask, &mut self.accum, self.width);
-        passes::fill(&self.accum, guide, &c, &mut self.filled);
+        passes::fill(&self.accum, &self.guide, &c, layout, &mut self.fill_inputs, &mut self.filled);
         let result = if mode == Mode::Interacting {
             let weights = self.ring.weights(inputs.frame);
             let past: Vec<PastFrame> = self
                 .past
                 .iter()
                 .zip(weights)
-                .filter(|(p, w)| *w > 0.0 && !p.radiance.is_empty())
-                .map(|(p, weight)| PastFrame {
-                    weight,
-                    radiance: &p.radiance,
-                    guide: Guide { normal: &p.normal, position: &p.position },
-                })
+                .filter(|(_, w)| *w > 0.0)
+                .map(|(p, weight)| PastFrame { weight, radiance: &p.radiance, guide: &p.guide })
                 .collect();
-            passes::temporal(&self.filled, guide, &past, &c, &mut self.blended);
-            passes::gaussian(&self.blended, guide, &c, &mut self.filtered);
+            passes::temporal(&self.filled, &self.guide, &past, &c, layout, &mut self.blended);
+            passes::gaussian(&self.blended, &self.guide, &c, layout, &mut self.filtered);
             &self.filtered
         } else {
             &self.filled
         };
 
-        let n = result.len();
-        let mut out = Reconstructed {
-            frame: inputs.frame,
-            mode,
-            radiance: result.clone(),
-            colour: vec![Vec3::ZERO; n],
-            display: vec![[0; 4]; n],
+        (out.frame, out.mode) = (inputs.frame, mode);
+        let n = g.len();
+        let outputs = Outputs {
+            radiance: sized(&mut out.radiance, n),
+            colour: sized(&mut out.colour, n),
+            display: sized(&mut out.display, n),
         };
-        passes::remodulate(
-            &out.radiance,
-            &g.albedo,
-            &g.emission,
-            &c,
-            &mut out.colour,
-            &mut out.display,
-        );
+        passes::remodulate(result, layout, &g.albedo, &g.emission, &c, outputs);
 
         if let Some(slot) = self.ring.push(inputs.frame) {
             let p = &mut self.past[slot];
-            p.radiance.clone_from(&self.filled);
-            p.normal.clone_from(&g.normal);
-            p.position.clone_from(&g.position);
+            std::mem::swap(&mut p.radiance, &mut self.filled);
+            std::mem::swap(&mut p.guide, &mut self.guide);
         }
-        Ok(out)
+        Ok(())
+    }
+}
+
+/// `v` with `n` entries to be overwritten: as it is when it has them, else new zeroed
+/// memory (which the OS maps lazily, so the threads that write it fault it in, in parallel).
+fn sized<T: Zeroable>(v: &mut Vec<T>, n: usize) -> &mut [T] {
+    if v.len() != n {
+        *v = bytemuck::zeroed_vec(n);
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::reconstruct::synthetic::{self, SyntheticView};
+
+    #[test]
+    fn reconstruct_into_reuses_its_buffers_and_matches_reconstruct() {
+        let (w, h) = (24, 16);
+        let g = synthetic::gbuffer(w, h, SyntheticView::default());
+        let radiance = synthetic::noisy_radiance(&synthetic::clean_radiance(&g), 0.5, 1, 1);
+        let masks: Vec<_> = (0..5).map(|k| synthetic::random_mask(g.len(), 0.7, 1, k)).collect();
+        let inputs = |frame: u64| FrameInputs {
+            frame,
+            state_version: frame / 2,
+            radiance: &radiance,
+            mask: &masks[frame as usize],
+            gbuffer: &g,
+        };
+        let params = ReconstructParams::default();
+        let (mut into, mut fresh) = (CpuReconstructor::new(w, h, params).expect("valid"), None);
+        let mut out = into.reconstruct(&inputs(0)).expect("frame 0");
+        let buffer = out.radiance.as_ptr();
+        for frame in 1..5 {
+            let reference = fresh.get_or_insert_with(|| {
+                let mut r = CpuReconstructor::new(w, h, params).expect("valid");
+                r.reconstruct(&inputs(0)).expect("frame 0");
+                r
+            });
+            let want = reference.reconstruct(&inputs(frame)).expect("frame");
+            into.reconstruct_into(&inputs(frame), &mut out).expect("frame");
+            assert_eq!((out.frame, out.mode), (want.frame, want.mode));
+            assert_eq!((&out.radiance, &out.colour), (&want.radiance, &want.colour));
+            assert_eq!(out.display, want.display);
+            assert_eq!(out.radiance.as_ptr(), buffer, "the buffer is reused");
+        }
+        let short = FrameInputs { frame: 5, mask: &masks[0][1..], ..inputs(4) };
+        into.reconstruct_into(&short, &mut out).expect_err("a short mask");
+        assert_eq!(out.frame, 4, "an error leaves the output as it was");
     }
 }

@@ -14,7 +14,34 @@
 //! zero normal and therefore D = 0 against everything. The WGSL passes
 //! (`shaders/common.wgsl`) evaluate exactly these expressions in the same order.
 
+use std::ops::{Add, Mul, Sub};
+
 use glam::Vec3;
+
+/// The arithmetic D is made of: `f32`, or `super::simd::F32s` (several pixels at once,
+/// lane by lane, with the same roundings).
+pub trait Real: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+    fn splat(v: f32) -> Self;
+
+    /// max(0, x); NaN gives 0.
+    fn positive_part(self) -> Self;
+}
+
+impl Real for f32 {
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        v
+    }
+
+    #[inline(always)]
+    fn positive_part(self) -> Self {
+        if self > 0.0 {
+            self
+        } else {
+            0.0
+        }
+    }
+}
 
 /// The thresholds of D in the form every implementation evaluates it (reciprocals
 /// precomputed once, so the inner loops multiply instead of dividing).
@@ -34,32 +61,29 @@ impl Thresholds {
 
     /// The orientation factor from a dot product of normals.
     #[inline(always)]
-    pub fn orientation(&self, dot: f32) -> f32 {
-        let o = (dot - self.alpha) * self.inv_one_minus_alpha;
-        if o > 0.0 {
-            o
-        } else {
-            0.0
-        }
+    pub fn orientation<R: Real>(&self, dot: R) -> R {
+        ((dot - R::splat(self.alpha)) * R::splat(self.inv_one_minus_alpha)).positive_part()
     }
 
     /// The position factor from a squared distance.
     #[inline(always)]
-    pub fn position(&self, dist2: f32) -> f32 {
-        let p = 1.0 - dist2 * self.inv_beta2;
-        if p > 0.0 {
-            p
-        } else {
-            0.0
-        }
+    pub fn position<R: Real>(&self, dist2: R) -> R {
+        (R::splat(1.0) - dist2 * R::splat(self.inv_beta2)).positive_part()
     }
 
     /// D between pixels (or frames of one pixel) with normals `n_i`, `n_j` and positions
     /// `z_i`, `z_j`.
     #[inline(always)]
     pub fn d(&self, n_i: Vec3, n_j: Vec3, z_i: Vec3, z_j: Vec3) -> f32 {
-        let dz = z_i - z_j;
-        self.orientation(n_i.dot(n_j)) * self.position(dz.dot(dz))
+        self.d3(n_i.to_array(), n_j.to_array(), z_i.to_array(), z_j.to_array())
+    }
+
+    /// [`Self::d`] on components (dot products summed x, y, z, as `Vec3::dot`).
+    #[inline(always)]
+    pub fn d3<R: Real>(&self, n_i: [R; 3], n_j: [R; 3], z_i: [R; 3], z_j: [R; 3]) -> R {
+        let dot = n_i[0] * n_j[0] + n_i[1] * n_j[1] + n_i[2] * n_j[2];
+        let dz = [z_i[0] - z_j[0], z_i[1] - z_j[1], z_i[2] - z_j[2]];
+        self.orientation(dot) * self.position(dz[0] * dz[0] + dz[1] * dz[1] + dz[2] * dz[2])
     }
 }
 

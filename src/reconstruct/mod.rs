@@ -17,14 +17,19 @@
 use glam::Vec3;
 use gridlight_actors::protocol::FrameNo;
 use gridlight_actors::state::StateVersion;
+use rayon::prelude::*;
 
 pub mod bench;
 pub mod cpu;
 pub mod discontinuity;
+mod fill;
+mod gaussian;
 pub mod gbuffer;
 pub mod history;
 pub mod params;
 pub mod passes;
+pub mod planes;
+pub mod simd;
 pub mod synthetic;
 pub mod tonemap;
 
@@ -76,11 +81,17 @@ impl FrameInputs<'_> {
                 return Err(ReconstructError::InputLength { what, expected: n, got: len });
             }
         }
+        // In parallel over blocks of pixels; the first bad pixel of the first block with one.
+        const BLOCK: usize = 1 << 14;
         let bad = self
             .radiance
-            .iter()
-            .zip(self.mask)
-            .position(|(v, &m)| m && !(v.is_finite() && v.min_element() >= 0.0));
+            .par_chunks(BLOCK)
+            .zip(self.mask.par_chunks(BLOCK))
+            .enumerate()
+            .find_map_first(|(b, (radiance, mask))| {
+                let bad = |(v, &m): (&Vec3, &bool)| m && !(v.is_finite() && v.min_element() >= 0.0);
+                radiance.iter().zip(mask).position(bad).map(|p| b * BLOCK + p)
+            });
         match bad {
             Some(pixel) => {
                 Err(ReconstructError::BadRadiance { pixel, value: self.radiance[pixel] })
@@ -166,6 +177,37 @@ impl Reconstructor {
         match self {
             Self::Cpu(_) => "cpu".to_string(),
             Self::Gpu(r) => r.adapter_name().to_string(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation_names_the_first_bad_calculated_pixel() {
+        let (w, h) = (300, 200);
+        let n = (w * h) as usize;
+        let g = GBuffer::empty(w, h, 1.0);
+        let mut mask = vec![true; n];
+        mask[5] = false;
+        let check = |radiance: &[Vec3]| {
+            let inputs =
+                FrameInputs { frame: 1, state_version: 1, radiance, mask: &mask, gbuffer: &g };
+            inputs.validate(w, h)
+        };
+        // A bad value without a result does not count; the first bad one with a result
+        // does, whichever block of the parallel check it lies in.
+        let mut radiance = vec![Vec3::ONE; n];
+        radiance[5] = Vec3::NAN;
+        check(&radiance).expect("pixel 5 has no result");
+        for (p, v) in [(40_000, Vec3::NEG_ONE), (n - 1, Vec3::INFINITY), (20_000, Vec3::NAN)] {
+            radiance[p] = v;
+        }
+        match check(&radiance) {
+            Err(ReconstructError::BadRadiance { pixel, .. }) => assert_eq!(pixel, 20_000),
+            other => panic!("{other:?}"),
         }
     }
 }

@@ -1,17 +1,30 @@
 //! The CPU reference of each reconstruction step, one function per GPU pass.
 //!
-//! Every function does exactly what its WGSL twin in `shaders/` does, in the same order of
-//! operations, so that the parity test can hold the two to a tight tolerance. Rows are
-//! processed in parallel with rayon.
+//! Every function computes what its WGSL twin in `shaders/` computes, each tap with the
+//! same f32 expressions in the same order (D, the weights, the products and the final
+//! division), so that the parity test can hold the two to a tight tolerance. The temporal
+//! filter and the Gaussian also add their terms in the shader's order; the fill
+//! (`super::fill`) adds its taps [`LANES`] at a time, which changes its sums by rounding
+//! only.
+//!
+//! The filters work on planes with a border (`super::planes`): taps need no bounds checks
+//! and one vector load fetches [`LANES`] neighbours. Rows are processed in parallel with
+//! rayon.
 
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::discontinuity::{is_surface, Thresholds};
+use super::discontinuity::Real;
+use super::discontinuity::Thresholds;
+pub use super::fill::{fill, FillInputs};
+pub use super::gaussian::gaussian;
 use super::params::{ReconstructParams, MAX_GAUSS_WIDTH, MAX_HISTORY};
+use super::planes::{normalise, view, write_rows, GuidePlanes, GuideView, Layout, PlaneRow};
+use super::planes::{Planes3, View3};
+use super::simd::{load, run_rows, store, F32s, Isa, RowKernel, Vec3s, LANES};
 #[cfg(test)]
 use super::tonemap::to_rgba8;
-use super::tonemap::{exposure_scale, to_rgba8_fast};
+use super::tonemap::{exposure_scale, to_rgba8_lanes};
 
 /// Entries of the 1-D Gaussian table (radius 0..=MAX_GAUSS_WIDTH/2).
 pub const GAUSS_TABLE: usize = (MAX_GAUSS_WIDTH as usize / 2) + 1;
@@ -51,33 +64,20 @@ impl PassConsts {
     }
 }
 
-/// The G-buffer planes the filters read.
-#[derive(Clone, Copy)]
-pub struct Guide<'a> {
-    pub normal: &'a [Vec3],
-    pub position: &'a [Vec3],
-}
-
 /// One previous frame as the temporal filter sees it.
 #[derive(Clone, Copy)]
 pub struct PastFrame<'a> {
     /// Weight w = 1/(F_i − F_j); 0 disables the slot.
     pub weight: f32,
-    pub radiance: &'a [Vec3],
-    pub guide: Guide<'a>,
-}
-
-fn rows<T: Send>(
-    out: &mut [T],
-    width: u32,
-) -> impl IndexedParallelIterator<Item = (usize, &mut [T])> {
-    out.par_chunks_mut(width as usize).enumerate()
+    /// Its filled radiance.
+    pub radiance: &'a Planes3,
+    pub guide: &'a GuidePlanes,
 }
 
 /// Step 4 (and the start of every frame): accumulates this frame's results. `reset` starts
 /// a new average (the scene state changed); rgb is the sum, w the number of samples.
 pub fn accumulate(reset: bool, radiance: &[Vec3], mask: &[bool], accum: &mut [Vec4], width: u32) {
-    rows(accum, width).for_each(|(y, row)| {
+    accum.par_chunks_mut(width as usize).enumerate().for_each(|(y, row)| {
         let base = y * width as usize;
         for (x, a) in row.iter_mut().enumerate() {
             let i = base + x;
@@ -87,287 +87,173 @@ pub fn accumulate(reset: bool, radiance: &[Vec3], mask: &[bool], accum: &mut [Ve
     });
 }
 
-/// Step 1: fills pixels without samples from calculated neighbours within the radius,
-/// weighted by D (k = 1). Where every neighbour has D = 0 the plain mean of the calculated
-/// surface neighbours is used; where there are none the value is 0 (a hole stays black).
-/// Pixels that hit no surface have radiance 0 by convention.
-pub fn fill(accum: &[Vec4], guide: Guide, c: &PassConsts, out: &mut [Vec3]) {
-    let (w, h) = (c.width as i32, c.height as i32);
-    let n = accum.len();
-    // Planar copies: each pixel's mean (the same division the GPU does per tap; 0 where
-    // nothing was calculated), whether it was calculated and whether it is a surface.
-    // Taps then need no branches: an uncalculated neighbour adds exactly 0 to each sum.
-    let mut mean = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
-    let mut calc = vec![0.0f32; n];
-    let mut surf_calc = vec![0.0f32; n];
-    for (i, a) in accum.iter().enumerate() {
-        if a.w > 0.0 {
-            let m = a.truncate() / a.w;
-            (mean[0][i], mean[1][i], mean[2][i]) = (m.x, m.y, m.z);
-            calc[i] = 1.0;
-            surf_calc[i] = if is_surface(guide.normal[i]) { 1.0 } else { 0.0 };
-        }
-    }
-    let planes = Planes::new(&[], guide);
-    let r = c.radius;
-    // Half-width of the disc on each row offset.
-    let half: Vec<i32> = (-r..=r)
-        .map(|dy| (0..=r).take_while(|dx| dx * dx + dy * dy <= r * r).count() as i32 - 1)
-        .collect();
-    rows(out, c.width).for_each(|(y, row)| {
-        let y = y as i32;
-        for (x, o) in row.iter_mut().enumerate() {
-            let x = x as i32;
-            let i = (y * w + x) as usize;
-            if calc[i] > 0.0 {
-                *o = Vec3::new(mean[0][i], mean[1][i], mean[2][i]);
-                continue;
-            }
-            let (n_i, z_i) = (guide.normal[i], guide.position[i]);
-            if !is_surface(n_i) {
-                *o = Vec3::ZERO;
-                continue;
-            }
-            let (mut a0, mut a1, mut a2, mut wsum) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-            let (mut p0, mut p1, mut p2, mut plain_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-            for dy in -r..=r {
-                let yy = y + dy;
-                if yy < 0 || yy >= h {
-                    continue;
-                }
-                let hw = half[(dy + r) as usize];
-                let (x0, x1) = ((x - hw).max(0), (x + hw).min(w - 1));
-                let base = (yy * w) as usize;
-                for j in base + x0 as usize..=base + x1 as usize {
-                    let dot =
-                        n_i.x * planes.n[0][j] + n_i.y * planes.n[1][j] + n_i.z * planes.n[2][j];
-                    let (e0, e1, e2) =
-                        (z_i.x - planes.z[0][j], z_i.y - planes.z[1][j], z_i.z - planes.z[2][j]);
-                    let d =
-                        c.d.orientation(dot) * c.d.position(e0 * e0 + e1 * e1 + e2 * e2) * calc[j];
-                    let (l0, l1, l2) = (mean[0][j], mean[1][j], mean[2][j]);
-                    a0 += l0 * d;
-                    a1 += l1 * d;
-                    a2 += l2 * d;
-                    wsum += d;
-                    let s = surf_calc[j];
-                    p0 += l0 * s;
-                    p1 += l1 * s;
-                    p2 += l2 * s;
-                    plain_n += s;
-                }
-            }
-            *o = if wsum > 0.0 {
-                Vec3::new(a0, a1, a2) / wsum
-            } else if plain_n > 0.0 {
-                Vec3::new(p0, p1, p2) / plain_n
-            } else {
-                Vec3::ZERO
-            };
-        }
-    });
-}
-
 /// Step 2: blends each pixel with its values in previous frames, weighted by the temporal
 /// D (same pixel, that frame's G-buffer) times w = 1/(F_i − F_j); the current frame has
 /// w = 1.
 pub fn temporal(
-    current: &[Vec3],
-    guide: Guide,
+    current: &Planes3,
+    guide: &GuidePlanes,
     past: &[PastFrame],
     c: &PassConsts,
-    out: &mut [Vec3],
+    layout: &Layout,
+    out: &mut Planes3,
 ) {
     assert!(past.len() <= MAX_HISTORY as usize);
-    rows(out, c.width).for_each(|(y, row)| {
-        let base = y * c.width as usize;
-        for (x, o) in row.iter_mut().enumerate() {
-            let i = base + x;
-            let (n_i, z_i) = (guide.normal[i], guide.position[i]);
-            let d0 = c.d.d(n_i, n_i, z_i, z_i);
-            let mut acc = current[i] * d0;
-            let mut wsum = d0;
-            for p in past.iter().filter(|p| p.weight > 0.0) {
-                let dw = c.d.d(n_i, p.guide.normal[i], z_i, p.guide.position[i]) * p.weight;
-                acc += p.radiance[i] * dw;
-                wsum += dw;
+    let past = past
+        .iter()
+        .filter(|p| p.weight > 0.0)
+        .map(|p| (p.weight, view(p.radiance), p.guide.view()))
+        .collect();
+    let pass =
+        TemporalPass { current: view(current), guide: guide.view(), past, d: c.d, layout: *layout };
+    write_rows(&pass, layout, out);
+}
+
+struct TemporalPass<'a> {
+    current: View3<'a>,
+    guide: GuideView<'a>,
+    /// Weight, filled radiance and G-buffer of each past frame with a weight.
+    past: Vec<(f32, View3<'a>, GuideView<'a>)>,
+    d: Thresholds,
+    layout: Layout,
+}
+
+/// Chunks of [`LANES`] pixels that the temporal filter blends together, one past frame
+/// after the other: a few long runs through each frame's planes, which the hardware
+/// prefetchers follow, rather than a dozen planes at every pixel.
+const SEGMENT: usize = 128;
+
+impl RowKernel<PlaneRow<'_>> for TemporalPass<'_> {
+    type Scratch = ();
+
+    fn scratch(&self) {}
+
+    #[inline(always)]
+    fn row<I: Isa>(&self, y: usize, mut out: PlaneRow<'_>, _: &mut ()) {
+        let (w, base) = (self.layout.width, self.layout.index(0, y));
+        let (normal, position) = (&self.guide.normal, &self.guide.position);
+        for start in (0..w).step_by(LANES * SEGMENT) {
+            let chunks = (start..w.min(start + LANES * SEGMENT)).step_by(LANES);
+            // (Σ w·D·L, Σ w·D) of each chunk, the current frame first.
+            let mut acc = [(Vec3s::<I>::zero(), F32s::zero()); SEGMENT];
+            for ((sum, wsum), x0) in acc.iter_mut().zip(chunks.clone()) {
+                let (n, z) = (Vec3s::load(normal, base + x0).0, Vec3s::load(position, base + x0).0);
+                let d0 = self.d.d3(n, n, z, z);
+                (*sum, *wsum) = (Vec3s::load(&self.current, base + x0) * d0, d0);
             }
-            *o = if wsum > 0.0 { acc / wsum } else { current[i] };
-        }
-    });
-}
-
-/// Step 3: the edge-aware Gaussian (width 2·gauss_radius + 1) weighted by D.
-///
-/// Evaluated tap by tap over whole rows on planar copies of the inputs so that the inner
-/// loop vectorises (AVX2 where the CPU has it); every pixel still sums its taps in the
-/// same (dy, dx) order as the WGSL pass.
-pub fn gaussian(src: &[Vec3], guide: Guide, c: &PassConsts, out: &mut [Vec3]) {
-    let planes = Planes::new(src, guide);
-    let avx2 = avx2();
-    rows(out, c.width).for_each(|(y, row)| {
-        // SAFETY: `gaussian_row_avx2` is only called when the CPU supports AVX2.
-        unsafe {
-            if avx2 {
-                gaussian_row_avx2(&planes, c, y, row)
-            } else {
-                gaussian_row(&planes, c, y, row)
+            for (weight, radiance, guide) in &self.past {
+                for ((sum, wsum), x0) in acc.iter_mut().zip(chunks.clone()) {
+                    let i = base + x0;
+                    let (n, z) = (Vec3s::load(normal, i).0, Vec3s::load(position, i).0);
+                    let (n_j, z_j) =
+                        (Vec3s::load(&guide.normal, i).0, Vec3s::load(&guide.position, i).0);
+                    let dw = self.d.d3(n, n_j, z, z_j) * F32s::splat(*weight);
+                    *sum += Vec3s::load(radiance, i) * dw;
+                    *wsum += dw;
+                }
+            }
+            for (&(sum, wsum), x0) in acc.iter().zip(chunks) {
+                let current = Vec3s::load(&self.current, base + x0);
+                normalise(sum, wsum, current, x0, &mut out);
             }
         }
-    });
-}
-
-fn avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
 
-/// Planar (structure-of-arrays) copies of the radiance and guide.
-struct Planes {
-    src: [Vec<f32>; 3],
-    n: [Vec<f32>; 3],
-    z: [Vec<f32>; 3],
-}
-
-impl Planes {
-    /// Splits `src` (may be empty) and the guide into planes.
-    fn new(src: &[Vec3], guide: Guide) -> Self {
-        let split =
-            |v: &[Vec3]| -> [Vec<f32>; 3] { [0, 1, 2].map(|k| v.iter().map(|p| p[k]).collect()) };
-        Self { src: split(src), n: split(guide.normal), z: split(guide.position) }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn gaussian_row_avx2(p: &Planes, c: &PassConsts, y: usize, out: &mut [Vec3]) {
-    gaussian_row(p, c, y, out)
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-unsafe fn gaussian_row_avx2(p: &Planes, c: &PassConsts, y: usize, out: &mut [Vec3]) {
-    gaussian_row(p, c, y, out)
-}
-
-#[inline(always)]
-fn sl(v: &[f32], s: usize, n: usize) -> &[f32] {
-    &v[s..s + n]
-}
-
-#[inline(always)]
-fn gaussian_row(p: &Planes, c: &PassConsts, y: usize, out: &mut [Vec3]) {
-    let (w, h) = (c.width as usize, c.height as i32);
-    let r = c.gauss_radius;
-    let mut acc = [vec![0.0f32; w], vec![0.0f32; w], vec![0.0f32; w]];
-    let mut wsum = vec![0.0f32; w];
-    let i0 = y * w;
-    for dy in -r..=r {
-        let yy = y as i32 + dy;
-        if yy < 0 || yy >= h {
-            continue;
-        }
-        let gy = c.gauss[dy.unsigned_abs() as usize];
-        for dx in -r..=r {
-            // Output pixels x whose tap x + dx lies inside the row.
-            let x0 = (-dx).max(0) as usize;
-            let x1 = (w as i32 - dx.max(0)) as usize;
-            if x1 <= x0 {
-                continue;
-            }
-            let g = gy * c.gauss[dx.unsigned_abs() as usize];
-            let j0 = (yy as usize * w) as isize + x0 as isize + dx as isize;
-            let (j0, n) = (j0 as usize, x1 - x0);
-            tap(
-                [sl(&p.n[0], i0 + x0, n), sl(&p.n[1], i0 + x0, n), sl(&p.n[2], i0 + x0, n)],
-                [sl(&p.z[0], i0 + x0, n), sl(&p.z[1], i0 + x0, n), sl(&p.z[2], i0 + x0, n)],
-                [sl(&p.n[0], j0, n), sl(&p.n[1], j0, n), sl(&p.n[2], j0, n)],
-                [sl(&p.z[0], j0, n), sl(&p.z[1], j0, n), sl(&p.z[2], j0, n)],
-                [sl(&p.src[0], j0, n), sl(&p.src[1], j0, n), sl(&p.src[2], j0, n)],
-                &mut acc,
-                &mut wsum,
-                x0,
-                g,
-                &c.d,
-            );
-        }
-    }
-    for (x, o) in out.iter_mut().enumerate() {
-        *o = if wsum[x] > 0.0 {
-            Vec3::new(acc[0][x], acc[1][x], acc[2][x]) / wsum[x]
-        } else {
-            Vec3::new(p.src[0][i0 + x], p.src[1][i0 + x], p.src[2][i0 + x])
-        };
-    }
-}
-
-/// One tap (fixed offset) for a run of output pixels starting at `x0`.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn tap(
-    ni: [&[f32]; 3],
-    zi: [&[f32]; 3],
-    nj: [&[f32]; 3],
-    zj: [&[f32]; 3],
-    sj: [&[f32]; 3],
-    acc: &mut [Vec<f32>; 3],
-    wsum: &mut [f32],
-    x0: usize,
-    g: f32,
-    d: &Thresholds,
-) {
-    let n = ni[0].len();
-    let [a0, a1, a2] = acc;
-    let (a0, a1, a2, ws) =
-        (&mut a0[x0..x0 + n], &mut a1[x0..x0 + n], &mut a2[x0..x0 + n], &mut wsum[x0..x0 + n]);
-    for k in 0..n {
-        let dot = ni[0][k] * nj[0][k] + ni[1][k] * nj[1][k] + ni[2][k] * nj[2][k];
-        let (e0, e1, e2) = (zi[0][k] - zj[0][k], zi[1][k] - zj[1][k], zi[2][k] - zj[2][k]);
-        let dist2 = e0 * e0 + e1 * e1 + e2 * e2;
-        let wgt = g * (d.orientation(dot) * d.position(dist2));
-        a0[k] += sj[0][k] * wgt;
-        a1[k] += sj[1][k] * wgt;
-        a2[k] += sj[2][k] * wgt;
-        ws[k] += wgt;
-    }
+/// Where [`remodulate`] writes, one entry per pixel (row-major).
+pub struct Outputs<'a> {
+    pub radiance: &'a mut [Vec3],
+    pub colour: &'a mut [Vec3],
+    pub display: &'a mut [[u8; 4]],
 }
 
 /// Step 5: remodulates the albedo, adds the directly seen emission (linear colour) and
-/// tonemaps it for display (8-bit sRGB RGBA).
+/// tonemaps it for display (8-bit sRGB RGBA); the radiance is copied out of its planes on
+/// the way.
 pub fn remodulate(
-    radiance: &[Vec3],
+    radiance: &Planes3,
+    layout: &Layout,
     albedo: &[Vec3],
     emission: &[Vec3],
     c: &PassConsts,
-    colour: &mut [Vec3],
-    display: &mut [[u8; 4]],
+    out: Outputs,
 ) {
-    colour
-        .par_chunks_mut(c.width as usize)
-        .zip(display.par_chunks_mut(c.width as usize))
+    let w = layout.width;
+    let rows = out
+        .radiance
+        .chunks_mut(w)
+        .zip(out.colour.chunks_mut(w))
+        .zip(out.display.chunks_mut(w))
+        .map(|((l, c), d)| (l, c, d))
         .enumerate()
-        .for_each(|(y, (crow, drow))| {
-            let base = y * c.width as usize;
-            let scale = exposure_scale(c.exposure);
-            for (x, (co, d)) in crow.iter_mut().zip(drow.iter_mut()).enumerate() {
-                let i = base + x;
-                *co = albedo[i] * radiance[i] + emission[i];
-                *d = to_rgba8_fast(*co, scale);
-            }
-        });
+        .collect();
+    let scale = exposure_scale(c.exposure);
+    let pass =
+        RemodulatePass { radiance: view(radiance), albedo, emission, layout: *layout, scale };
+    run_rows(&pass, rows);
+}
+
+/// One row of [`Outputs`].
+type OutputRow<'a> = (&'a mut [Vec3], &'a mut [Vec3], &'a mut [[u8; 4]]);
+
+struct RemodulatePass<'a> {
+    radiance: View3<'a>,
+    albedo: &'a [Vec3],
+    emission: &'a [Vec3],
+    layout: Layout,
+    /// Exposure multiplier.
+    scale: f32,
+}
+
+impl RowKernel<OutputRow<'_>> for RemodulatePass<'_> {
+    type Scratch = ();
+
+    fn scratch(&self) {}
+
+    #[inline(always)]
+    fn row<I: Isa>(&self, y: usize, (radiance, colour, display): OutputRow<'_>, _: &mut ()) {
+        let (w, base) = (self.layout.width, self.layout.index(0, y));
+        for x0 in (0..w).step_by(LANES) {
+            // LANES pixels at a time (the row's last chunk padded), so that the filmic
+            // curve vectorises.
+            let x1 = w.min(x0 + LANES);
+            let l = Vec3s::<I>::load(&self.radiance, base + x0).to_vec3s();
+            let albedo = load(&self.albedo[y * w + x0..y * w + x1], Vec3::ZERO);
+            let emission = load(&self.emission[y * w + x0..y * w + x1], Vec3::ZERO);
+            let c: [Vec3; LANES] = std::array::from_fn(|k| albedo[k] * l[k] + emission[k]);
+            store(&mut radiance[x0..x1], &l);
+            store(&mut colour[x0..x1], &c);
+            store(&mut display[x0..x1], &to_rgba8_lanes(&c, self.scale));
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::reconstruct::planes::{at, split};
 
     fn consts(w: u32, h: u32) -> PassConsts {
         PassConsts::new(w, h, &ReconstructParams::default(), 1.0)
+    }
+
+    /// A layout for `c` and the guide in it.
+    fn setup(normal: &[Vec3], position: &[Vec3], c: &PassConsts) -> (Layout, GuidePlanes) {
+        let layout = Layout::new(c.width, c.height, c.radius.max(c.gauss_radius) as usize);
+        let mut guide = GuidePlanes::new(&layout);
+        guide.split(normal, position, &layout);
+        (layout, guide)
+    }
+
+    fn planes(v: &[Vec3], layout: &Layout) -> Planes3 {
+        let mut p = layout.zeroed3();
+        split(v, layout, 0.0, &mut p);
+        p
+    }
+
+    fn image(p: &Planes3, layout: &Layout) -> Vec<Vec3> {
+        let w = layout.width;
+        (0..w * layout.height).map(|i| at(p, layout.index(i % w, i / w))).collect()
     }
 
     fn flat(n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
@@ -385,57 +271,22 @@ mod tests {
     }
 
     #[test]
-    fn fill_reproduces_a_constant_and_keeps_calculated_pixels() {
-        let (w, h) = (16, 12);
-        let n = (w * h) as usize;
-        let (normal, position) = flat(n);
-        let accum: Vec<Vec4> = (0..n)
-            .map(|i| if i % 3 == 0 { Vec4::ZERO } else { Vec4::new(0.5, 0.25, 1.0, 1.0) })
-            .collect();
-        let mut out = vec![Vec3::ZERO; n];
-        fill(&accum, Guide { normal: &normal, position: &position }, &consts(w, h), &mut out);
-        for v in out {
-            assert!((v - Vec3::new(0.5, 0.25, 1.0)).abs().max_element() < 1e-6, "{v}");
-        }
-    }
-
-    #[test]
-    fn fill_does_not_cross_a_depth_edge() {
-        // Left half at z = 0 with radiance 1, right half at z = 5 with radiance 0; the
-        // missing pixel on the left must take only left values.
-        let (w, h) = (12, 4);
-        let n = (w * h) as usize;
-        let normal = vec![Vec3::Z; n];
-        let position: Vec<Vec3> =
-            (0..n).map(|i| Vec3::new(0.0, 0.0, if i % 12 < 6 { 0.0 } else { 5.0 })).collect();
-        let mut accum: Vec<Vec4> = (0..n)
-            .map(|i| if i % 12 < 6 { Vec4::ONE } else { Vec4::new(0.0, 0.0, 0.0, 1.0) })
-            .collect();
-        accum[12 + 5] = Vec4::ZERO;
-        let mut out = vec![Vec3::ZERO; n];
-        fill(&accum, Guide { normal: &normal, position: &position }, &consts(w, h), &mut out);
-        assert_eq!(out[12 + 5], Vec3::ONE);
-    }
-
-    #[test]
     fn temporal_weights_follow_frame_distance() {
-        let n = 1;
-        let (normal, position) = flat(n);
-        let guide = Guide { normal: &normal, position: &position };
-        let old = [Vec3::splat(4.0)];
-        let past = [PastFrame { weight: 1.0 / 3.0, radiance: &old, guide }];
-        let mut out = [Vec3::ZERO];
-        temporal(&[Vec3::ZERO], guide, &past, &consts(1, 1), &mut out);
+        let c = consts(1, 1);
+        let (normal, position) = flat(1);
+        let (layout, guide) = setup(&normal, &position, &c);
+        let (current, old) = (planes(&[Vec3::ZERO], &layout), planes(&[Vec3::splat(4.0)], &layout));
+        let mut out = layout.zeroed3();
+        let past = [PastFrame { weight: 1.0 / 3.0, radiance: &old, guide: &guide }];
+        temporal(&current, &guide, &past, &c, &layout, &mut out);
         // (0·1 + 4·1/3) / (1 + 1/3) = 1
-        assert!((out[0] - Vec3::ONE).abs().max_element() < 1e-5, "{}", out[0]);
-        let moved = [Vec3::new(0.0, 0.0, 9.0)];
-        let past = [PastFrame {
-            weight: 1.0,
-            radiance: &old,
-            guide: Guide { normal: &normal, position: &moved },
-        }];
-        temporal(&[Vec3::ZERO], guide, &past, &consts(1, 1), &mut out);
-        assert_eq!(out[0], Vec3::ZERO, "a different surface in the past frame is ignored");
+        let v = at(&out, layout.index(0, 0));
+        assert!((v - Vec3::ONE).abs().max_element() < 1e-5, "{v}");
+        let (_, moved) = setup(&normal, &[Vec3::new(0.0, 0.0, 9.0)], &c);
+        let past = [PastFrame { weight: 1.0, radiance: &old, guide: &moved }];
+        temporal(&current, &guide, &past, &c, &layout, &mut out);
+        let v = at(&out, layout.index(0, 0));
+        assert_eq!(v, Vec3::ZERO, "a different surface in the past frame is ignored");
     }
 
     #[test]
@@ -454,26 +305,81 @@ mod tests {
                 }
             })
             .collect();
-        let mut out = vec![Vec3::ZERO; n];
-        gaussian(&src, Guide { normal: &normal, position: &position }, &consts(w, h), &mut out);
+        let c = consts(w, h);
+        let (layout, guide) = setup(&normal, &position, &c);
+        let mut out = layout.zeroed3();
+        gaussian(&planes(&src, &layout), &guide, &c, &layout, &mut out);
+        let out = image(&out, &layout);
         let left = 8 * 16 + 4;
         assert!((out[left].x - 1.0).abs() < 0.3, "{}", out[left]);
         assert_eq!(out[8 * 16 + 8], Vec3::splat(10.0), "nothing leaks across the normal edge");
     }
 
+    /// `shaders/gaussian.wgsl`, line by line.
+    fn wgsl_gaussian(
+        src: &[Vec3],
+        normal: &[Vec3],
+        position: &[Vec3],
+        c: &PassConsts,
+    ) -> Vec<Vec3> {
+        let (w, h, r) = (c.width as i32, c.height as i32, c.gauss_radius);
+        let g = |d: i32| c.gauss[d.unsigned_abs() as usize];
+        let pixel = |x: i32, y: i32| {
+            let p = (y * w + x) as usize;
+            let (mut acc, mut wsum) = (Vec3::ZERO, 0.0);
+            for dy in (-r..=r).filter(|dy| (0..h).contains(&(y + dy))) {
+                for dx in (-r..=r).filter(|dx| (0..w).contains(&(x + dx))) {
+                    let q = ((y + dy) * w + x + dx) as usize;
+                    let wgt = g(dy) * g(dx) * c.d.d(normal[p], normal[q], position[p], position[q]);
+                    acc += src[q] * wgt;
+                    wsum += wgt;
+                }
+            }
+            if wsum > 0.0 {
+                acc / wsum
+            } else {
+                src[p]
+            }
+        };
+        (0..w * h).map(|p| pixel(p % w, p / w)).collect()
+    }
+
+    #[test]
+    fn gaussian_adds_its_taps_as_the_shader() {
+        // Negative α gives the border a positive orientation factor: only its infinitely
+        // distant positions keep it out. Widths that are not a multiple of LANES.
+        let (w, h) = (21, 13);
+        let n = (w * h) as usize;
+        let normal: Vec<Vec3> = (0..n)
+            .map(|i| [Vec3::Z, Vec3::X, Vec3::ZERO, Vec3::new(0.6, 0.0, 0.8)][i * 7 % 11 % 4])
+            .collect();
+        let position: Vec<Vec3> =
+            (0..n).map(|i| Vec3::new((i % 5) as f32 * 0.1, 0.0, 0.0)).collect();
+        let src: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, 1.0, (i % 3) as f32)).collect();
+        for (gauss_width, alpha) in [(7, 0.75), (15, -0.5), (1, 0.0)] {
+            let params = ReconstructParams { gauss_width, alpha, sigma: 2.0, ..Default::default() };
+            let c = PassConsts::new(w, h, &params, 1.0);
+            let (layout, guide) = setup(&normal, &position, &c);
+            let mut out = layout.zeroed3();
+            gaussian(&planes(&src, &layout), &guide, &c, &layout, &mut out);
+            assert_eq!(image(&out, &layout), wgsl_gaussian(&src, &normal, &position, &c));
+        }
+    }
+
     #[test]
     fn remodulate_multiplies_albedo_and_adds_emission() {
         let c = consts(1, 1);
-        let mut colour = [Vec3::ZERO];
-        let mut display = [[0u8; 4]];
+        let layout = Layout::new(1, 1, 0);
+        let (mut radiance, mut colour, mut display) = ([Vec3::ZERO], [Vec3::ZERO], [[0u8; 4]]);
         remodulate(
-            &[Vec3::splat(2.0)],
+            &planes(&[Vec3::splat(2.0)], &layout),
+            &layout,
             &[Vec3::new(0.5, 0.25, 0.0)],
             &[Vec3::Z],
             &c,
-            &mut colour,
-            &mut display,
+            Outputs { radiance: &mut radiance, colour: &mut colour, display: &mut display },
         );
+        assert_eq!(radiance[0], Vec3::splat(2.0));
         assert_eq!(colour[0], Vec3::new(1.0, 0.5, 1.0));
         assert_eq!(display[0], to_rgba8(colour[0], 0.0));
     }
