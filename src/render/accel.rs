@@ -105,13 +105,26 @@ impl TriEdges {
     }
 }
 
+/// What shading needs of a leaf-order triangle beyond its edges, gathered at
+/// build time so that a closest hit on a flat-shaded triangle reads no mesh data.
+#[derive(Clone, Copy, Debug)]
+pub struct LeafTri {
+    /// Index of the triangle in the mesh.
+    pub original: u32,
+    /// Its material slot.
+    pub slot: u32,
+    /// Its vertex normals are absent or all along the geometric normal, so the
+    /// shading normal is the geometric one and need not be interpolated.
+    pub flat: bool,
+}
+
 /// Bottom-level BVH of one mesh, in object space.
 pub struct Blas {
     bvh: CwBvh,
     /// Triangles in BVH leaf order.
     tris: Vec<TriEdges>,
-    /// Index of each leaf-order triangle in the mesh.
-    original: Vec<u32>,
+    /// Shading data of each leaf-order triangle.
+    leaves: Vec<LeafTri>,
     pub mesh: Arc<Mesh>,
     pub bounds: Aabb,
 }
@@ -155,6 +168,25 @@ pub fn validate_mesh(mesh: &Mesh) -> Result<(), MeshError> {
     Ok(())
 }
 
+/// Vertex normals within this cosine of the face normal count as flat shading
+/// (about 0.1°: below what shading could show).
+const FLAT_COS: f32 = 0.999_998;
+
+fn leaf_tri(mesh: &Mesh, original: u32) -> LeafTri {
+    let i = original as usize;
+    let idx = mesh.indices[i];
+    let flat = mesh.normals.is_empty() || {
+        let [a, b, c] = idx.map(|v| mesh.positions[v as usize]);
+        let face = (b - a).cross(c - a).normalize_or_zero();
+        let cos = idx.map(|v| mesh.normals[v as usize].normalize_or_zero().dot(face));
+        // Normals facing away are flipped to the geometric side when shading, so
+        // all-opposite is as flat as all-aligned; a mix is not.
+        face != glam::Vec3::ZERO
+            && (cos.iter().all(|&c| c >= FLAT_COS) || cos.iter().all(|&c| c <= -FLAT_COS))
+    };
+    LeafTri { original, slot: mesh.slots.get(i).copied().unwrap_or(0), flat }
+}
+
 impl Blas {
     /// Builds the BLAS of a validated mesh.
     pub fn build(mesh: Arc<Mesh>) -> Result<Self, MeshError> {
@@ -172,6 +204,7 @@ impl Blas {
             bounds = bounds.union(&t.aabb());
         }
         let (bvh, original) = build_tri_bvh(&tris, BvhBuildParams::medium_build());
+        let leaves = original.iter().map(|&i| leaf_tri(&mesh, i)).collect();
         let tris = original
             .iter()
             .map(|&i| {
@@ -179,13 +212,19 @@ impl Blas {
                 TriEdges::new(t.v0, t.v1, t.v2)
             })
             .collect();
-        Ok(Self { bvh, tris, original, mesh, bounds })
+        Ok(Self { bvh, tris, leaves, mesh, bounds })
     }
 
     /// Index in the mesh of leaf-order triangle `prim`.
     #[inline]
     pub fn original(&self, prim: u32) -> u32 {
-        self.original[prim as usize]
+        self.leaves[prim as usize].original
+    }
+
+    /// Shading data of leaf-order triangle `prim`.
+    #[inline]
+    pub fn leaf(&self, prim: u32) -> &LeafTri {
+        &self.leaves[prim as usize]
     }
 
     /// Leaf-order triangle `prim`.
@@ -614,6 +653,27 @@ mod tests {
             );
             check_against_brute_force(vec![Instance::new(blas, m, 0, 0)], &mut rng);
         }
+    }
+
+    #[test]
+    fn flat_shading_is_detected_per_triangle() {
+        let cube = Blas::build(Arc::new(shapes::cube())).unwrap();
+        assert!((0..cube.triangle_count() as u32).all(|p| cube.leaf(p).flat));
+        let sphere = Blas::build(Arc::new(shapes::sphere(2))).unwrap();
+        assert!((0..sphere.triangle_count() as u32).all(|p| !sphere.leaf(p).flat));
+        // Normals all facing away are flat too (shading flips them); a mix is not.
+        let mut mesh = shapes::quad();
+        mesh.normals.iter_mut().for_each(|n| *n = -*n);
+        let flipped = Blas::build(Arc::new(mesh.clone())).unwrap();
+        assert!((0..2).all(|p| flipped.leaf(p).flat));
+        mesh.normals[mesh.indices[0][1] as usize] *= -1.0;
+        let mixed = Blas::build(Arc::new(mesh)).unwrap();
+        assert!((0..2).any(|p| !mixed.leaf(p).flat));
+        // Without vertex normals every triangle is flat.
+        let mut bare = shapes::quad();
+        bare.normals.clear();
+        let bare = Blas::build(Arc::new(bare)).unwrap();
+        assert!((0..2).all(|p| bare.leaf(p).flat));
     }
 
     #[test]

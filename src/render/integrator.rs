@@ -52,6 +52,7 @@ struct Surface<'a> {
     ng: Vec3,
     /// Unit shading normal, on the same side as `ng`.
     ns: Vec3,
+    /// Texture coordinates; zero unless the material is textured.
     uv: Vec2,
     material: &'a MaterialData,
     object: u32,
@@ -76,37 +77,34 @@ fn closest<'a>(scene: &'a RenderScene, o: Vec3, d: Vec3) -> Option<Hit<'a>> {
     let inst = &scene.tlas.instances[hit.instance as usize];
     let blas = &*inst.blas;
     let tri = blas.tri(hit.prim);
+    let leaf = blas.leaf(hit.prim);
     let mesh = &*blas.mesh;
-    let original = blas.original(hit.prim) as usize;
-    let idx = mesh.indices[original];
+    let material_id = scene.slot_materials[(inst.material_base + leaf.slot) as usize];
+    let material = &scene.materials[material_id as usize];
     let (u, v) = (hit.u, hit.v);
     let w = 1.0 - u - v;
     let ng = Vec3::from(inst.normal_to_world * tri.e1.cross(tri.e2)).normalize();
-    let mut ns = if mesh.normals.is_empty() {
-        ng
-    } else {
-        let [a, b, c] = idx.map(|i| mesh.normals[i as usize]);
-        inst.normal_to_world.mul_vec3(a * w + b * u + c * v).normalize_or(ng)
+    // Vertex data is read only where it can change the result.
+    let idx =
+        (!leaf.flat || material.texture.is_some()).then(|| mesh.indices[leaf.original as usize]);
+    let mut ns = match idx {
+        Some(idx) if !leaf.flat => {
+            let [a, b, c] = idx.map(|i| mesh.normals[i as usize]);
+            inst.normal_to_world.mul_vec3(a * w + b * u + c * v).normalize_or(ng)
+        }
+        _ => ng,
     };
     if ns.dot(ng) < 0.0 {
         ns = -ns;
     }
-    let uv = if mesh.uvs.is_empty() {
-        Vec2::ZERO
-    } else {
-        let [a, b, c] = idx.map(|i| mesh.uvs[i as usize]);
-        a * w + b * u + c * v
+    let uv = match idx {
+        Some(idx) if material.texture.is_some() && !mesh.uvs.is_empty() => {
+            let [a, b, c] = idx.map(|i| mesh.uvs[i as usize]);
+            a * w + b * u + c * v
+        }
+        _ => Vec2::ZERO,
     };
-    let slot = mesh.slots.get(original).copied().unwrap_or(0);
-    let material_id = scene.slot_materials[(inst.material_base + slot) as usize];
-    Some(Hit::Surface(Surface {
-        p: o + d * hit.t,
-        ng,
-        ns,
-        uv,
-        material: &scene.materials[material_id as usize],
-        object: inst.object,
-    }))
+    Some(Hit::Surface(Surface { p: o + d * hit.t, ng, ns, uv, material, object: inst.object }))
 }
 
 /// Offsets a ray origin off the surface to the side `dir` leaves towards.
