@@ -454,7 +454,7 @@ impl Tlas {
     }
 
     /// Closest hit along `origin + t * dir` for t in (0, tmax).
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
         let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
@@ -517,7 +517,7 @@ impl Tlas {
     }
 
     /// Whether anything blocks `origin + t * dir` for t in (0, tmax).
-    #[inline]
+    #[inline(always)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
         let mut state = Traversal::default();

@@ -68,7 +68,7 @@ impl Bsdf {
     }
 
     /// `f(wo, wi) · |cos θi|` and the pdf of sampling `wi`.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         if self.is_delta() {
             return (Vec3::ZERO, 0.0);
@@ -87,7 +87,7 @@ impl Bsdf {
     }
 
     /// Samples `wi` from three uniform numbers.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         let u2 = Vec2::new(u[1], u[2]);
         match self.kind {

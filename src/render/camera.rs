@@ -78,7 +78,7 @@ impl CameraRays {
 
     /// The ray through image position `pixel` (in pixels, y down from the top
     /// edge); `lens` in [0,1)² picks the point on a thin lens.
-    #[inline]
+    #[inline(always)]
     pub fn ray(&self, pixel: Vec2, lens: Vec2) -> (Vec3, Vec3) {
         let x = (2.0 * pixel.x * self.inv_width - 1.0) * self.half_w;
         let y = (1.0 - 2.0 * pixel.y * self.inv_height) * self.half_h;

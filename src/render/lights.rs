@@ -159,7 +159,7 @@ impl Lights {
     }
 
     /// Samples a light as seen from `p` with three uniform numbers.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, p: Vec3, u: [f32; 3]) -> Option<LightSample> {
         if self.strategies == 0 {
             return None;
@@ -196,6 +196,7 @@ impl Lights {
         })
     }
 
+    #[inline(always)]
     fn sample_area(&self, p: Vec3, u: f32, u2: Vec2) -> Option<LightSample> {
         let target = u * self.area_power;
         let i = self.area_cdf.partition_point(|&c| c <= target).min(self.areas.len() - 1);

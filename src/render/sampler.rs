@@ -148,7 +148,7 @@ pub struct SampleStream {
 
 impl SampleStream {
     /// The stream of sample `index` of `pixel` in `frame` under the scene `seed`.
-    #[inline]
+    #[inline(always)]
     pub fn new(seed: u64, frame: u64, pixel: u32, index: u32) -> Self {
         let h =
             mix64(seed ^ mix64(frame.wrapping_add(0x9e37_79b9_7f4a_7c15) ^ mix64(pixel as u64)));
@@ -156,7 +156,7 @@ impl SampleStream {
     }
 
     /// The next 4-D point of this sample, every coordinate in [0, 1).
-    #[inline]
+    #[inline(always)]
     pub fn next4(&mut self) -> [f32; 4] {
         let seed =
             mix32(self.pixel_seed ^ mix32(self.draw.wrapping_mul(0x9e37_79b9) ^ 0x68e3_1da4));
