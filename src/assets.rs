@@ -31,6 +31,12 @@ impl Mesh {
     pub fn triangle_count(&self) -> usize {
         self.indices.len()
     }
+
+    /// Material slot of `triangle` (slot 0 when the mesh lists none).
+    #[inline]
+    pub fn slot(&self, triangle: usize) -> u32 {
+        self.slots.get(triangle).copied().unwrap_or(0)
+    }
 }
 
 /// A 2-D image of linear RGB values (albedo maps are decoded from sRGB on load).

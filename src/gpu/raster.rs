@@ -68,7 +68,7 @@ pub(super) const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 4] =
 /// The vertices of `mesh`'s triangles grouped by material slot, and each slot's range.
 pub(super) fn slot_vertices(mesh: &Mesh) -> (Vec<Vertex>, Vec<Range<u32>>) {
     let slots = mesh.slot_count.max(1) as usize;
-    let slot_of = |t: usize| (mesh.slots.get(t).copied().unwrap_or(0) as usize).min(slots - 1);
+    let slot_of = |t: usize| (mesh.slot(t) as usize).min(slots - 1);
     let mut order: Vec<usize> = (0..mesh.indices.len()).collect();
     order.sort_by_key(|&t| slot_of(t));
     let mut vertices = Vec::with_capacity(order.len() * 3);

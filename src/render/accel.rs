@@ -160,7 +160,7 @@ pub fn validate_mesh(mesh: &Mesh) -> Result<(), MeshError> {
         if let Some(&vertex) = tri.iter().find(|&&i| i as usize >= n) {
             return Err(MeshError::VertexOutOfRange { triangle, vertex, count: n });
         }
-        let slot = mesh.slots.get(triangle).copied().unwrap_or(0);
+        let slot = mesh.slot(triangle);
         if slot >= mesh.slot_count.max(1) {
             return Err(MeshError::SlotOutOfRange { triangle, slot, count: mesh.slot_count });
         }
@@ -184,7 +184,7 @@ fn leaf_tri(mesh: &Mesh, original: u32) -> LeafTri {
         face != glam::Vec3::ZERO
             && (cos.iter().all(|&c| c >= FLAT_COS) || cos.iter().all(|&c| c <= -FLAT_COS))
     };
-    LeafTri { original, slot: mesh.slots.get(i).copied().unwrap_or(0), flat }
+    LeafTri { original, slot: mesh.slot(i), flat }
 }
 
 impl Blas {
@@ -213,12 +213,6 @@ impl Blas {
             })
             .collect();
         Ok(Self { bvh, tris, leaves, mesh, bounds })
-    }
-
-    /// Index in the mesh of leaf-order triangle `prim`.
-    #[inline]
-    pub fn original(&self, prim: u32) -> u32 {
-        self.leaves[prim as usize].original
     }
 
     /// Shading data of leaf-order triangle `prim`.
@@ -589,7 +583,7 @@ mod tests {
             for (i, t) in inst.blas.tris.iter().enumerate() {
                 let tmax = best.map_or(f32::INFINITY, |b| b.0);
                 if let Some((t, ..)) = t.intersect(lo, ld, 0.0, tmax) {
-                    best = Some((t, inst.object * 1_000_000 + inst.blas.original(i as u32)));
+                    best = Some((t, inst.object * 1_000_000 + inst.blas.leaf(i as u32).original));
                 }
             }
         }
@@ -607,7 +601,7 @@ mod tests {
             let expected = brute_force(&instances, o, d);
             let got = tlas.intersect(o, d, f32::INFINITY).map(|h| {
                 let inst = &tlas.instances[h.instance as usize];
-                (h.t, inst.object * 1_000_000 + inst.blas.original(h.prim))
+                (h.t, inst.object * 1_000_000 + inst.blas.leaf(h.prim).original)
             });
             match (expected, got) {
                 (None, None) => {}

@@ -338,7 +338,7 @@ fn collect_emitters(
     }
     let m = &instance.object_to_world;
     for (i, tri) in mesh.indices.iter().enumerate() {
-        let slot = mesh.slots.get(i).copied().unwrap_or(0) as usize;
+        let slot = mesh.slot(i) as usize;
         let material = &materials[bindings[slot] as usize];
         if !material.is_emissive() {
             continue;
