@@ -34,7 +34,7 @@ fn a_result() -> WorkerMsg {
         state_version: 1,
         radiance: PackedRadiance::Rgb9e5((0..64).collect()),
         render_us: 5,
-        tag: [0x5a; 32],
+        tag: [0x5a; gridlight_actors::integrity::TAG_LEN],
     })
 }
 

@@ -158,6 +158,7 @@ pub fn to_frame<T: Serialize>(msg: &T) -> Result<Vec<u8>, ProtocolError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrity::TAG_LEN;
     use crate::protocol::{JobResult, PackedRadiance, Partition, SetsConfig};
 
     fn roundtrip_master(msg: MasterMsg) -> MasterMsg {
@@ -175,7 +176,7 @@ mod tests {
             state_version: 2,
             radiance: PackedRadiance::Rgb9e5(vec![1, 2, 3]),
             render_us: 99,
-            tag: [7; 32],
+            tag: [7; TAG_LEN],
         });
         let bytes = to_frame(&msg).expect("encode");
         let mut codec = MasterCodec::new();
@@ -235,7 +236,7 @@ mod tests {
                 state_version: 3,
                 radiance: PackedRadiance::Rgb9e5(vec![0xdead_beef; n]),
                 render_us: 4,
-                tag: [0; 32],
+                tag: [0; TAG_LEN],
             })
         };
         let (small, big) =

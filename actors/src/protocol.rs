@@ -30,14 +30,15 @@
 //!    never travel: both sides derive them from `(resolution, sets, partition, set)`).
 //!
 //! # Result integrity
-//! Every [`JobResult`] carries `tag` = keyed BLAKE3 under a per-connection key over
-//! (frame, set, state version, radiance); see [`crate::integrity`]. The key is derived
+//! Every [`JobResult`] carries a 128-bit `tag` over (frame, set, state version,
+//! radiance) under a per-connection key; see [`crate::integrity`]. The key is derived
 //! from the shared secret (empty without one) and this connection's `Challenge` nonce,
 //! so it never travels and differs per connection. The master verifies the tag before
 //! any other check of a result; a mismatch is rejected like any bad input (kind
-//! `corrupt`), so a corrupted payload never reaches an image. With a secret the tag also
-//! authenticates: a man in the middle cannot alter or forge pixels. Without one it is a
-//! checksum against accidental corruption only. `render_us` is advisory and not covered.
+//! `corrupt`), so a corrupted payload never reaches an image. With a secret the tag is
+//! keyed BLAKE3 and authenticates: a man in the middle cannot alter or forge pixels.
+//! Without one it is XXH3-128, a checksum against accidental corruption only.
+//! `render_us` is advisory and not covered.
 //!
 //! Either side sends [`WorkerMsg::Heartbeat`]/[`MasterMsg::Heartbeat`] when it has
 //! been quiet for [`HEARTBEAT_INTERVAL`]; a peer silent for [`PEER_TIMEOUT`] is gone.
@@ -56,7 +57,8 @@ use crate::state::{SceneState, StateVersion};
 /// 2: RGB9E5 radiance travels as one MessagePack `bin` of little-endian `u32`s.
 /// 3: every result carries an integrity tag (`JobResult::tag`).
 /// 4: the tag is keyed BLAKE3 instead of HMAC-SHA256 (the key derivation is unchanged).
-pub const PROTOCOL_VERSION: u32 = 4;
+/// 5: the tag is 128 bits, and XXH3-128 when no secret is configured.
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
