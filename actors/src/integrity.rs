@@ -207,8 +207,14 @@ mod tests {
         assert!(!ResultKey::derive(None, &n1).verify(&r), "forgeable from the nonce alone");
         let open = result(&ResultKey::derive(None, &n1));
         assert!(ResultKey::derive(None, &n1).verify(&open));
-        assert!(!ResultKey::derive(None, &n2).verify(&open), "checksum not bound to the connection");
-        assert!(!ResultKey::derive(Some(b"".as_slice()), &n1).verify(&open), "checksum taken for a MAC");
+        assert!(
+            !ResultKey::derive(None, &n2).verify(&open),
+            "checksum not bound to the connection"
+        );
+        assert!(
+            !ResultKey::derive(Some(b"".as_slice()), &n1).verify(&open),
+            "checksum taken for a MAC"
+        );
     }
 
     #[test]

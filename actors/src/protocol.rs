@@ -152,8 +152,16 @@ mod le_u32_bytes {
                     b.len()
                 )));
             }
-            let mut words = vec![0u32; b.len() / 4];
-            bytemuck::cast_slice_mut::<u32, u8>(&mut words).copy_from_slice(b);
+            // Copied into fresh capacity rather than zero-filled and overwritten: the
+            // fill was a memset of every result on the master's actor thread.
+            let n = b.len() / 4;
+            let mut words = Vec::<u32>::with_capacity(n);
+            // SAFETY: the capacity holds `n` words, `b.len()` bytes, all written before
+            // `set_len`; any four bytes are a valid `u32`.
+            unsafe {
+                std::ptr::copy_nonoverlapping(b.as_ptr(), words.as_mut_ptr().cast::<u8>(), b.len());
+                words.set_len(n);
+            }
             words.iter_mut().for_each(|w| *w = u32::from_le(*w)); // no-op on little-endian
             Ok(words)
         }

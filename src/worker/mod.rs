@@ -38,6 +38,10 @@ use shared::Shared;
 /// Jobs a worker holds at once when not told otherwise (DESIGN.md decision 7).
 pub const DEFAULT_PIPELINE: u32 = 2;
 
+/// Bytes the writer may buffer before it must flush (tokio-util's default is 8 KiB, less
+/// than one 640×480 result).
+const WRITE_BATCH_BYTES: usize = 256 * 1024;
+
 /// Longest wait for a TCP connection to the master.
 pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -220,5 +224,8 @@ async fn connect(
         .map_err(|e| WorkerError::Connection(format!("connecting to {master}: {e}")))?;
     // Results are small and latency matters more than packet count.
     let _ = stream.set_nodelay(true);
-    Ok(Framed::new(stream, gridlight_actors::codec::WorkerCodec::default()))
+    let mut framed = Framed::new(stream, gridlight_actors::codec::WorkerCodec::default());
+    // Room for a result and the credit after it, so that the writer's batch is one write.
+    framed.set_backpressure_boundary(WRITE_BATCH_BYTES);
+    Ok(framed)
 }

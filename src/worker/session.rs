@@ -91,6 +91,9 @@ where
 }
 
 /// Sends queued messages, and a heartbeat after `HEARTBEAT_INTERVAL` of silence.
+///
+/// Everything already queued goes out in one flush: a result and the credit that follows
+/// it become one write (one system call, one segment) instead of two.
 async fn write_loop<S, E>(mut sink: S, mut rx: mpsc::Receiver<WorkerMsg>) -> Result<(), String>
 where
     S: Sink<WorkerMsg, Error = E> + Unpin,
@@ -102,7 +105,11 @@ where
             Ok(None) => break,
             Err(_) => WorkerMsg::Heartbeat,
         };
-        sink.send(msg).await.map_err(|e| e.to_string())?;
+        sink.feed(msg).await.map_err(|e| e.to_string())?;
+        while let Ok(more) = rx.try_recv() {
+            sink.feed(more).await.map_err(|e| e.to_string())?;
+        }
+        sink.flush().await.map_err(|e| e.to_string())?;
     }
     sink.close().await.map_err(|e| e.to_string())
 }
