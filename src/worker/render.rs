@@ -9,7 +9,8 @@
 //! connection's key (`gridlight_actors::integrity`).
 //!
 //! The null renderer (`--null-render`, for `gridlight bench master`) answers every job
-//! with constant radiance at no cost, so a benchmark measures the master alone.
+//! with constant radiance at no cost, so a benchmark measures the master alone; without
+//! a simulated delay it answers on the connection's task, with no thread at all.
 
 use std::sync::mpsc as std_mpsc;
 use std::sync::Arc;
@@ -53,14 +54,27 @@ pub struct RenderJob {
     pub state: Arc<SceneState>,
 }
 
-/// Handle to a connection's render thread; dropping it ends the thread after its
-/// current job.
+/// Handle to a connection's renderer: its render thread, or the null renderer itself.
+///
+/// The path tracer (and a null renderer with a delay) runs on its own thread; dropping
+/// the handle ends the thread after its current job. The null renderer without delay
+/// answers on the connection's task as the job is submitted: its work is nothing, so a
+/// thread hand-off each way would be all its cost, and `gridlight bench master`, which
+/// runs such workers beside the master, would measure that instead of the master.
 pub struct RenderThread {
-    jobs: std_mpsc::Sender<RenderJob>,
+    inner: Inner,
+}
+
+enum Inner {
+    Thread(std_mpsc::Sender<RenderJob>),
+    Inline {
+        renderer: Box<Renderer>,
+        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+    },
 }
 
 impl RenderThread {
-    /// Starts the thread; results (or the error that ended it) go to `results`.
+    /// Starts the renderer; results (or the error that ended it) go to `results`.
     pub fn spawn(
         name: &str,
         kind: RendererKind,
@@ -70,30 +84,36 @@ impl RenderThread {
         key: ResultKey,
         results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
     ) -> Result<Self, WorkerError> {
-        let (jobs, rx) = std_mpsc::channel::<RenderJob>();
         let mut renderer =
             Renderer { kind, view, shared, sets, key, scene: None, samples: Vec::new() };
+        if kind == (RendererKind::Null { delay_ms: 0 }) {
+            return Ok(Self { inner: Inner::Inline { renderer: Box::new(renderer), results } });
+        }
+        let (jobs, rx) = std_mpsc::channel::<RenderJob>();
         std::thread::Builder::new()
             .name(format!("render {name}"))
             .spawn(move || {
                 while let Ok(job) = rx.recv() {
-                    let result = renderer.render(&job);
-                    let failed = result.is_err();
-                    if let Err(err) = &result {
-                        error!(frame = job.frame, set = job.set, cause = %err, "render failed");
-                    }
-                    if results.send(result).is_err() || failed {
+                    if !renderer.answer(&job, &results) {
                         break;
                     }
                 }
             })
             .map_err(|e| WorkerError::Render(format!("cannot start a render thread: {e}")))?;
-        Ok(Self { jobs })
+        Ok(Self { inner: Inner::Thread(jobs) })
     }
 
-    /// Queues a job behind the ones already held.
-    pub fn submit(&self, job: RenderJob) -> Result<(), WorkerError> {
-        self.jobs.send(job).map_err(|_| WorkerError::Render("the render thread ended".into()))
+    /// Queues a job behind the ones already held (or answers it, for the inline renderer).
+    pub fn submit(&mut self, job: RenderJob) -> Result<(), WorkerError> {
+        match &mut self.inner {
+            Inner::Thread(jobs) => {
+                jobs.send(job).map_err(|_| WorkerError::Render("the render thread ended".into()))
+            }
+            Inner::Inline { renderer, results } => {
+                renderer.answer(&job, results);
+                Ok(())
+            }
+        }
     }
 }
 
@@ -113,6 +133,21 @@ struct Renderer {
 }
 
 impl Renderer {
+    /// Renders `job` and sends the result or the error; false when rendering cannot go
+    /// on (an error, or nobody listening).
+    fn answer(
+        &mut self,
+        job: &RenderJob,
+        results: &mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+    ) -> bool {
+        let result = self.render(job);
+        let failed = result.is_err();
+        if let Err(err) = &result {
+            error!(frame = job.frame, set = job.set, cause = %err, "render failed");
+        }
+        results.send(result).is_ok() && !failed
+    }
+
     fn render(&mut self, job: &RenderJob) -> Result<JobResult, WorkerError> {
         let started = Instant::now();
         let res = job.state.resolution;

@@ -153,7 +153,7 @@ where
     progress.welcomed = true;
 
     let (results_tx, mut results_rx) = mpsc::unbounded_channel();
-    let render = RenderThread::spawn(
+    let mut render = RenderThread::spawn(
         &config.name,
         config.renderer,
         Some(view),
