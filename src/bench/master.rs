@@ -45,6 +45,8 @@ pub struct MasterBench {
     pub bytes_per_pixel: f64,
     /// Result bytes (worker → master) per pixel delivered.
     pub bytes_in_per_pixel: f64,
+    /// Whether workers authenticated with a shared secret (`--secret`).
+    pub authenticated: bool,
     pub jobs_per_second: f64,
     pub frames: u64,
     pub seconds: f64,
@@ -60,6 +62,8 @@ pub struct BenchOptions {
     pub seconds: f64,
     /// Jobs a worker holds (k).
     pub pipeline: u32,
+    /// Workers prove a random shared secret (results carry MACs, not checksums).
+    pub secret: bool,
 }
 
 /// Runs every configuration, calling `emit` with each result as it is measured.
@@ -72,6 +76,7 @@ pub fn run(opts: &BenchOptions, mut emit: impl FnMut(&MasterBench)) -> anyhow::R
         .iter()
         .try_for_each(|&connections| measure(&exe, &cache, connections, opts).map(|r| emit(&r)));
     let _ = std::fs::remove_dir_all(&cache);
+    let _ = std::fs::remove_file(cache.with_extension("secret"));
     outcome
 }
 
@@ -88,6 +93,15 @@ fn measure(
     config.pacing =
         Pacing::Heuristic(Heuristic { q_min: 1.0, q_max: 1.0, i_min: 100.0, i_max: 100.0 });
     config.pipeline = opts.pipeline.max(1);
+    let secret_file = cache.with_extension("secret");
+    if opts.secret {
+        // Hex of a fresh nonce: random, and printable in a file as a user would write it.
+        let secret: String =
+            gridlight_actors::auth::nonce().iter().map(|b| format!("{b:02x}")).collect();
+        std::fs::write(&secret_file, &secret)
+            .with_context(|| format!("writing {}", secret_file.display()))?;
+        config.secret = Some(secret.into_bytes());
+    }
     let handle = master::start(config, bench_state(), AssetStore::new(), Box::new(CountingSink))
         .context("starting the master")?;
     let mut workers = Children::new();
@@ -106,6 +120,9 @@ fn measure(
         .arg(cache)
         .env("RUST_LOG", "warn")
         .stdout(Stdio::null());
+    if opts.secret {
+        cmd.arg("--secret-file").arg(&secret_file);
+    }
     workers.spawn(cmd).context("starting the null-render worker")?;
 
     if !handle.wait_for_frames(WARMUP_FRAMES, WARMUP_TIMEOUT) {
@@ -129,6 +146,7 @@ fn measure(
             as f64
             / pixels,
         bytes_in_per_pixel: (after.bytes_in - before.bytes_in) as f64 / pixels,
+        authenticated: opts.secret,
         jobs_per_second: jobs as f64 / seconds,
         frames,
         seconds,

@@ -18,6 +18,10 @@ pub struct MasterArgs {
     /// Jobs each worker connection holds (k).
     #[arg(long, default_value_t = gridlight_actors::master::DEFAULT_PIPELINE)]
     pub pipeline: u32,
+    /// Authenticate the workers with a random shared secret, as `--secret-file` does: every
+    /// result then carries a keyed BLAKE3 tag instead of an XXH3 checksum.
+    #[arg(long)]
+    pub secret: bool,
 }
 
 /// Runs `gridlight bench master`: one JSON line per connection count.
@@ -26,6 +30,7 @@ pub fn run(args: MasterArgs, _global: &GlobalArgs) -> anyhow::Result<()> {
         connections: args.connections,
         seconds: args.seconds,
         pipeline: args.pipeline,
+        secret: args.secret,
     };
     master_bench::run(&opts, |line| match serde_json::to_string(line) {
         Ok(json) => println!("{json}"),
