@@ -78,6 +78,7 @@ impl PackedFrame {
 
 /// Decodes `words` into the pixels `pixels` names (one word per pixel) and marks them.
 fn scatter(pixels: &[u32], words: &[u32], out: &mut [MaybeUninit<Vec3>], mask: &mut [bool]) {
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
     let (mut pixels, mut words) = (pixels, words);
     #[cfg(target_arch = "x86_64")]
     {

@@ -138,7 +138,7 @@ fn worker_msg() -> impl Strategy<Value = WorkerMsg> {
             any::<u64>(),
             prop::collection::vec(any::<u32>(), 0..300),
             any::<u64>(),
-            hash(),
+            any::<[u8; gridlight_actors::integrity::TAG_LEN]>(),
         )
             .prop_map(|(frame, set, state_version, px, render_us, tag)| WorkerMsg::Result(
                 JobResult {
