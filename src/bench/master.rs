@@ -71,18 +71,34 @@ pub fn run(opts: &BenchOptions, mut emit: impl FnMut(&MasterBench)) -> anyhow::R
     let exe = std::env::current_exe().context("finding the gridlight executable")?;
     // The scene has no assets, so the cache stays empty; it still must not be the user's.
     let cache = std::env::temp_dir().join(format!("gridlight-bench-master-{}", std::process::id()));
-    let outcome = opts
-        .connections
-        .iter()
-        .try_for_each(|&connections| measure(&exe, &cache, connections, opts).map(|r| emit(&r)));
+    let secret_file = cache.with_extension("secret");
+    let outcome = write_secret(opts.secret, &secret_file).and_then(|secret| {
+        let secret = secret.as_ref().map(|s| (secret_file.as_path(), s.as_slice()));
+        opts.connections.iter().try_for_each(|&connections| {
+            measure(&exe, &cache, secret, connections, opts).map(|r| emit(&r))
+        })
+    });
     let _ = std::fs::remove_dir_all(&cache);
-    let _ = std::fs::remove_file(cache.with_extension("secret"));
+    let _ = std::fs::remove_file(&secret_file);
     outcome
+}
+
+/// With `--secret`, a fresh random secret written to `path` for the workers: the hex of a
+/// nonce, printable in a file as a user would write one.
+fn write_secret(wanted: bool, path: &std::path::Path) -> anyhow::Result<Option<Vec<u8>>> {
+    if !wanted {
+        return Ok(None);
+    }
+    let secret: String =
+        gridlight_actors::auth::nonce().iter().map(|b| format!("{b:02x}")).collect();
+    std::fs::write(path, &secret).with_context(|| format!("writing {}", path.display()))?;
+    Ok(Some(secret.into_bytes()))
 }
 
 fn measure(
     exe: &std::path::Path,
     cache: &std::path::Path,
+    secret: Option<(&std::path::Path, &[u8])>,
     connections: u32,
     opts: &BenchOptions,
 ) -> anyhow::Result<MasterBench> {
@@ -93,15 +109,7 @@ fn measure(
     config.pacing =
         Pacing::Heuristic(Heuristic { q_min: 1.0, q_max: 1.0, i_min: 100.0, i_max: 100.0 });
     config.pipeline = opts.pipeline.max(1);
-    let secret_file = cache.with_extension("secret");
-    if opts.secret {
-        // Hex of a fresh nonce: random, and printable in a file as a user would write it.
-        let secret: String =
-            gridlight_actors::auth::nonce().iter().map(|b| format!("{b:02x}")).collect();
-        std::fs::write(&secret_file, &secret)
-            .with_context(|| format!("writing {}", secret_file.display()))?;
-        config.secret = Some(secret.into_bytes());
-    }
+    config.secret = secret.map(|(_, bytes)| bytes.to_vec());
     let handle = master::start(config, bench_state(), AssetStore::new(), Box::new(CountingSink))
         .context("starting the master")?;
     let mut workers = Children::new();
@@ -120,8 +128,8 @@ fn measure(
         .arg(cache)
         .env("RUST_LOG", "warn")
         .stdout(Stdio::null());
-    if opts.secret {
-        cmd.arg("--secret-file").arg(&secret_file);
+    if let Some((file, _)) = secret {
+        cmd.arg("--secret-file").arg(file);
     }
     workers.spawn(cmd).context("starting the null-render worker")?;
 
