@@ -14,6 +14,7 @@
 //! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
 //! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
 //! - [`faults`]: fault injection: TCP proxy, invariant checks, worker harness, RSS.
+//! - [`lan`]: separate network hosts on one machine (namespaces, bridge, rate-limited links).
 //! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
 //! - [`render`]: the path tracer (BVHs, materials, lights, the per-pixel kernel).
 //! - [`bench`]: benchmarks behind `gridlight bench` (kernel and master throughput).
@@ -32,6 +33,7 @@ pub mod faults;
 pub mod gpu;
 pub mod headless;
 pub mod image_io;
+pub mod lan;
 pub mod master_cmd;
 pub mod reconstruct;
 pub mod render;

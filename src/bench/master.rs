@@ -31,9 +31,9 @@ pub const RESOLUTION: Resolution = Resolution { width: 640, height: 480 };
 /// Sets per frame.
 pub const SETS: u32 = 64;
 /// Frames shown before measuring.
-const WARMUP_FRAMES: u64 = 5;
+pub const WARMUP_FRAMES: u64 = 5;
 /// Longest wait for the warm-up.
-const WARMUP_TIMEOUT: Duration = Duration::from_secs(30);
+pub const WARMUP_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// One line of the benchmark's output.
 #[derive(Debug, Clone, Serialize)]
@@ -102,13 +102,7 @@ fn measure(
     connections: u32,
     opts: &BenchOptions,
 ) -> anyhow::Result<MasterBench> {
-    let mut config = MasterConfig::new(
-        SocketAddr::from(([127, 0, 0, 1], 0)),
-        SetsConfig { sets: SETS, partition: Partition::QuasiRandom },
-    );
-    config.pacing =
-        Pacing::Heuristic(Heuristic { q_min: 1.0, q_max: 1.0, i_min: 100.0, i_max: 100.0 });
-    config.pipeline = opts.pipeline.max(1);
+    let mut config = complete_frames_config(SocketAddr::from(([127, 0, 0, 1], 0)), opts.pipeline);
     config.secret = secret.map(|(_, bytes)| bytes.to_vec());
     let handle = master::start(config, bench_state(), AssetStore::new(), Box::new(CountingSink))
         .context("starting the master")?;
@@ -164,6 +158,17 @@ fn measure(
     })
 }
 
+/// A master on `listen` with the benchmark's sets, showing only complete frames (so that
+/// frames per second are whole assembled frames), workers holding `pipeline` jobs each.
+pub fn complete_frames_config(listen: SocketAddr, pipeline: u32) -> MasterConfig {
+    let mut config =
+        MasterConfig::new(listen, SetsConfig { sets: SETS, partition: Partition::QuasiRandom });
+    config.pacing =
+        Pacing::Heuristic(Heuristic { q_min: 1.0, q_max: 1.0, i_min: 100.0, i_max: 100.0 });
+    config.pipeline = pipeline.max(1);
+    config
+}
+
 /// Counters at one instant.
 struct Sample {
     at: Instant,
@@ -199,8 +204,8 @@ fn process_cpu_us() -> f64 {
     us(usage.ru_utime) + us(usage.ru_stime)
 }
 
-/// A sink that drops frames: the benchmark measures assembly, not output.
-struct CountingSink;
+/// A sink that drops frames: the benchmarks measure assembly, not output.
+pub struct CountingSink;
 
 impl FrameSink for CountingSink {
     fn show(&mut self, _frame: ShownFrame) -> Result<(), SinkError> {

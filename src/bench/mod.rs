@@ -3,6 +3,9 @@
 //!
 //! - [`trace`]: single-thread throughput of the path-tracing kernel.
 //! - [`master`]: frames per second and CPU per job of the master with null-render workers.
+//! - [`lan`]: frames per second and bytes per frame across namespace hosts behind
+//!   rate-limited links, beside the bandwidth bound.
 
+pub mod lan;
 pub mod master;
 pub mod trace;

@@ -29,6 +29,8 @@ pub enum What {
     Trace(TraceArgs),
     /// The master alone: null-render workers on loopback, 640×480, S = 64.
     Master(super::bench_master::MasterArgs),
+    /// Across hosts: network namespaces behind rate-limited links (needs root).
+    Lan(super::bench_lan::LanArgs),
     /// Milliseconds per 640×480 frame of the full reconstruction pipeline, CPU and GPU.
     Reconstruct(ReconstructArgs),
 }
@@ -98,6 +100,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             Ok(())
         }
         What::Master(args) => super::bench_master::run(args, global),
+        What::Lan(args) => super::bench_lan::run(args, global),
     }
 }
 

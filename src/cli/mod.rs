@@ -10,6 +10,7 @@ use std::path::PathBuf;
 use clap::{Parser, Subcommand};
 
 pub mod bench;
+pub mod bench_lan;
 pub mod bench_master;
 pub mod demo;
 pub mod eval;
