@@ -67,7 +67,13 @@ fn slurm_batch_script_starts_a_valid_worker() {
         .lines()
         .position(|l| !l.trim().is_empty() && !l.starts_with('#'))
         .expect("the script runs something");
-    let last_directive = text.lines().rposition(|l| l.starts_with("#SBATCH")).expect("directives");
+    let last_directive = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| l.starts_with("#SBATCH"))
+        .map(|(i, _)| i)
+        .last()
+        .expect("directives");
     assert!(last_directive < first_command, "{file}: #SBATCH after the first command");
 }
 
@@ -314,11 +320,11 @@ fn systemd_unit_runs_an_idle_priority_worker() {
         .filter(|(_, l)| !l.starts_with('#') && !l.starts_with('['))
         .filter_map(|(n, l)| l.split_once('=').map(|(k, v)| (n, k.to_string(), v.to_string())))
         .collect();
-    let get = |k: &str| entries.iter().filter(|(_, key, _)| key == k).map(|(_, _, v)| v.as_str());
     for (key, value) in [("CPUSchedulingPolicy", "idle"), ("Nice", "19"), ("Restart", "on-failure")] {
-        assert_eq!(get(key).collect::<Vec<_>>(), [value], "{file}: {key}");
+        assert_eq!(unit_values(&entries, key), [value], "{file}: {key}");
     }
-    let vars: Vars = get("Environment")
+    let vars: Vars = unit_values(&entries, "Environment")
+        .into_iter()
         .filter_map(|v| v.split_once('='))
         .map(|(k, v)| (k.to_string(), v.to_string()))
         .collect();
@@ -327,6 +333,11 @@ fn systemd_unit_runs_an_idle_priority_worker() {
     let args = worker_args(check_cli(file, *line, &cmd));
     assert_eq!(args.master, vars["GRIDLIGHT_MASTER"]);
     verify_unit(file, &text, &cmd[0]);
+}
+
+/// The values of every `key=` line of a unit.
+fn unit_values<'a>(entries: &'a [(usize, String, String)], key: &str) -> Vec<&'a str> {
+    entries.iter().filter(|(_, k, _)| k == key).map(|(_, _, v)| v.as_str()).collect()
 }
 
 /// `systemd-analyze verify` on the unit with the real binary in place of the installed one
