@@ -59,7 +59,7 @@ pub struct LanBench {
     pub link_mbit: u32,
     pub hosts: usize,
     pub frames_per_second: f64,
-    /// Bytes on the master's link per shown frame, both directions.
+    /// Bytes on the master's link per frame (S accepted results), both directions.
     pub bytes_per_frame: f64,
     /// Of those, into the master (results).
     pub bytes_in_per_frame: f64,
@@ -151,7 +151,9 @@ fn measure(
         .map(|(host, (b, a))| link_report(host, b, a))
         .collect();
     let master_link = &links[0];
-    let per_frame = |bytes: u64| bytes as f64 / frames.max(1) as f64;
+    // Per frame from the accepted results (S to a frame), finer-grained than whole frames.
+    let frames_of_jobs = (after.jobs - before.jobs).max(1) as f64 / f64::from(SETS);
+    let per_frame = |bytes: u64| bytes as f64 / frames_of_jobs;
     let bytes_in_per_frame = per_frame(master_link.rx_bytes);
     let busier = bytes_in_per_frame.max(per_frame(master_link.tx_bytes));
     let jobs_per_second = connections as f64 * 1000.0 / f64::from(opts.render_ms.max(1));
@@ -235,6 +237,7 @@ fn results_by_host(handle: &MasterHandle) -> BTreeMap<String, u64> {
 struct Snapshot {
     at: Instant,
     shown: u64,
+    jobs: u64,
     links: Vec<(Instant, LinkCounters, Instant)>,
 }
 
@@ -242,6 +245,7 @@ impl Snapshot {
     fn take(bed: &Testbed, handle: &MasterHandle) -> anyhow::Result<Self> {
         let at = Instant::now();
         let shown = handle.report().shown;
+        let jobs = Counters::get(&handle.counters().results_accepted);
         let links = bed
             .hosts()
             .iter()
@@ -251,7 +255,7 @@ impl Snapshot {
                 Ok::<_, anyhow::Error>((start, counters, Instant::now()))
             })
             .collect::<anyhow::Result<_>>()?;
-        Ok(Self { at, shown, links })
+        Ok(Self { at, shown, jobs, links })
     }
 }
 

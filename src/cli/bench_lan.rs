@@ -28,7 +28,7 @@ pub struct LanArgs {
     #[arg(long, default_value_t = gridlight_actors::master::DEFAULT_PIPELINE)]
     pub pipeline: u32,
     /// Seconds measured per configuration (after a warm-up).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 5.0)]
     pub seconds: f64,
 }
 

@@ -78,7 +78,8 @@ impl Testbed {
         if uid != 0 {
             return Some(LanError::NotRoot(uid).to_string());
         }
-        let probe = format!("{PREFIX}{}-probe", std::process::id());
+        let seq = SEQUENCE.fetch_add(1, Ordering::Relaxed);
+        let probe = format!("{PREFIX}{}-{seq}-probe", std::process::id());
         let result = ip(&["netns", "add", &probe])
             .and_then(|_| tc(&["-V"]))
             .and_then(|_| ip(&["netns", "del", &probe]));
