@@ -54,7 +54,8 @@ fn slurm_batch_script_starts_a_valid_worker() {
         ("HOME", "/home/alice"),
         ("MASTER", "render-host:7840"),
     ]);
-    let commands = words::shell_commands(&read(file), &vars).unwrap_or_else(|e| panic!("{file}: {e}"));
+    let commands =
+        words::shell_commands(&read(file), &vars).unwrap_or_else(|e| panic!("{file}: {e}"));
     assert_eq!(commands.len(), 1, "{file}: one gridlight command expected: {commands:?}");
     let (line, cmd) = &commands[0];
     let args = worker_args(check_cli(file, *line, cmd));
@@ -104,11 +105,37 @@ fn condor_definitions(text: &str) -> Vec<(usize, String, String)> {
 /// Machine and job ClassAd attributes the HTCondor manual documents ("Machine ClassAd
 /// Attributes", "Job ClassAd Attributes") that these files use or might.
 const DOCUMENTED_ATTRIBUTES: &[&str] = &[
-    "Activity", "Arch", "ClockDay", "ClockMin", "CondorLoadAvg", "ConsoleIdle", "Cpus",
-    "CurrentTime", "Disk", "EnteredCurrentActivity", "EnteredCurrentState", "HasFileTransfer",
-    "JobStart", "KeyboardIdle", "LoadAvg", "Machine", "Memory", "OpSys", "OpSysAndVer",
-    "RemoteOwner", "RemoteUser", "State", "TotalCondorLoadAvg", "TotalCpus", "TotalDisk",
-    "TotalLoadAvg", "TotalMemory", "ExitBySignal", "ExitCode", "NumJobStarts", "RequestCpus",
+    "Activity",
+    "Arch",
+    "ClockDay",
+    "ClockMin",
+    "CondorLoadAvg",
+    "ConsoleIdle",
+    "Cpus",
+    "CurrentTime",
+    "Disk",
+    "EnteredCurrentActivity",
+    "EnteredCurrentState",
+    "HasFileTransfer",
+    "JobStart",
+    "KeyboardIdle",
+    "LoadAvg",
+    "Machine",
+    "Memory",
+    "OpSys",
+    "OpSysAndVer",
+    "RemoteOwner",
+    "RemoteUser",
+    "State",
+    "TotalCondorLoadAvg",
+    "TotalCpus",
+    "TotalDisk",
+    "TotalLoadAvg",
+    "TotalMemory",
+    "ExitBySignal",
+    "ExitCode",
+    "NumJobStarts",
+    "RequestCpus",
 ];
 
 /// Startd policy expressions (HTCondor manual, "Policy Configuration for Execute Hosts").
@@ -117,15 +144,34 @@ const POLICY_KNOBS: &[&str] =
 
 /// Submit description commands the HTCondor manual documents (condor_submit).
 const SUBMIT_COMMANDS: &[&str] = &[
-    "universe", "executable", "transfer_executable", "arguments", "transfer_input_files",
-    "should_transfer_files", "when_to_transfer_output", "request_cpus", "request_memory",
-    "request_disk", "requirements", "rank", "output", "error", "log", "environment", "getenv",
-    "notification", "initialdir", "on_exit_remove", "periodic_remove", "periodic_release",
+    "universe",
+    "executable",
+    "transfer_executable",
+    "arguments",
+    "transfer_input_files",
+    "should_transfer_files",
+    "when_to_transfer_output",
+    "request_cpus",
+    "request_memory",
+    "request_disk",
+    "requirements",
+    "rank",
+    "output",
+    "error",
+    "log",
+    "environment",
+    "getenv",
+    "notification",
+    "initialdir",
+    "on_exit_remove",
+    "periodic_remove",
+    "periodic_release",
 ];
 
 fn check_attributes(file: &str, line: usize, name: &str, expr: &str) {
-    let attrs = deploy::classad::attributes(expr)
-        .unwrap_or_else(|e| panic!("{file}:{line}: {name} = {expr}\nis not a ClassAd expression: {e}"));
+    let attrs = deploy::classad::attributes(expr).unwrap_or_else(|e| {
+        panic!("{file}:{line}: {name} = {expr}\nis not a ClassAd expression: {e}")
+    });
     for a in attrs {
         assert!(
             DOCUMENTED_ATTRIBUTES.iter().any(|d| d.eq_ignore_ascii_case(&a)),
@@ -169,7 +215,11 @@ fn htcondor_submit_description_is_valid() {
     macros.insert("Process".into(), "5".into());
     let get = |k: &str| macros.get(k).unwrap_or_else(|| panic!("{file}: no `{k}`"));
     assert_eq!(get("universe"), "vanilla");
-    assert_eq!(get("transfer_executable").to_lowercase(), "true", "the binary travels with the job");
+    assert_eq!(
+        get("transfer_executable").to_lowercase(),
+        "true",
+        "the binary travels with the job"
+    );
     assert!(words::is_gridlight(get("executable")));
     // Every key is a documented command, or a macro of this file that something uses.
     for (line, key, _) in &defs {
@@ -182,7 +232,9 @@ fn htcondor_submit_description_is_valid() {
     let (line, _, arguments) = defs.iter().find(|(_, k, _)| k == "arguments").expect("arguments");
     let arguments = words::condor_expand(arguments, &macros).unwrap();
     let mut cmd = vec!["gridlight".to_string()];
-    cmd.extend(words::condor_arguments(&arguments).unwrap_or_else(|e| panic!("{file}:{line}: {e}")));
+    cmd.extend(
+        words::condor_arguments(&arguments).unwrap_or_else(|e| panic!("{file}:{line}: {e}")),
+    );
     let args = worker_args(check_cli(file, *line, &cmd));
     assert_eq!(args.master, macros["master"], "the master's address comes from the `master` macro");
     // The secret file the worker reads is one the job transfers.
@@ -225,7 +277,8 @@ fn container_command(c: &Value) -> Vec<String> {
         .flatten()
         .map(|e| {
             let name = e["name"].as_str().unwrap().to_string();
-            let value = e["value"].as_str().map_or_else(|| format!("sample-{name}"), str::to_string);
+            let value =
+                e["value"].as_str().map_or_else(|| format!("sample-{name}"), str::to_string);
             (name, value)
         })
         .collect();
@@ -276,21 +329,31 @@ fn kubernetes_manifests_are_consistent_and_their_command_lines_valid() {
         assert!(deployment["spec"]["replicas"].as_u64().is_some(), "{file}: replicas");
         for c in pod["containers"].as_sequence().unwrap() {
             let cmd = container_command(c);
-            assert!(dockerfile.contains(&format!("ENTRYPOINT [\"{}\"]", cmd[0])), "{file}: {cmd:?}");
+            assert!(
+                dockerfile.contains(&format!("ENTRYPOINT [\"{}\"]", cmd[0])),
+                "{file}: {cmd:?}"
+            );
             match check_cli(file, 0, &cmd).command {
                 Sub::Master(args) => {
                     master_port = Some(args.listen.port());
-                    let scene = args.scene.strip_prefix("/usr/share/gridlight").expect("a built-in scene");
+                    let scene =
+                        args.scene.strip_prefix("/usr/share/gridlight").expect("a built-in scene");
                     assert!(repo().join(scene).is_file(), "{file}: no {}", scene.display());
                     check_secret_mount(pod, c, &args.secret_file.expect("a secret"), secret);
                     let ports = c["ports"].as_sequence().unwrap();
-                    assert!(ports.iter().any(|p| p["containerPort"] == u64::from(args.listen.port())
-                        && p["name"] == service["spec"]["ports"][0]["targetPort"]));
+                    assert!(ports
+                        .iter()
+                        .any(|p| p["containerPort"] == u64::from(args.listen.port())
+                            && p["name"] == service["spec"]["ports"][0]["targetPort"]));
                 }
                 Sub::Worker(args) => {
                     let port = service["spec"]["ports"][0]["port"].as_u64().unwrap();
                     let name = service["metadata"]["name"].as_str().unwrap();
-                    assert_eq!(args.master, format!("{name}:{port}"), "{file}: workers reach the Service");
+                    assert_eq!(
+                        args.master,
+                        format!("{name}:{port}"),
+                        "{file}: workers reach the Service"
+                    );
                     check_secret_mount(pod, c, &args.secret_file.expect("a secret"), secret);
                 }
                 other => panic!("{file}: unexpected command {other:?}"),
@@ -320,7 +383,8 @@ fn systemd_unit_runs_an_idle_priority_worker() {
         .filter(|(_, l)| !l.starts_with('#') && !l.starts_with('['))
         .filter_map(|(n, l)| l.split_once('=').map(|(k, v)| (n, k.to_string(), v.to_string())))
         .collect();
-    for (key, value) in [("CPUSchedulingPolicy", "idle"), ("Nice", "19"), ("Restart", "on-failure")] {
+    for (key, value) in [("CPUSchedulingPolicy", "idle"), ("Nice", "19"), ("Restart", "on-failure")]
+    {
         assert_eq!(unit_values(&entries, key), [value], "{file}: {key}");
     }
     let vars: Vars = unit_values(&entries, "Environment")
@@ -349,10 +413,15 @@ fn verify_unit(file: &str, text: &str, installed: &str) {
     let out = match Command::new("systemd-analyze").arg("verify").arg(&unit).output() {
         Ok(out) => out,
         Err(e) => {
-            eprintln!("skipped: systemd-analyze verify of {file}: systemd-analyze not runnable ({e})");
+            eprintln!(
+                "skipped: systemd-analyze verify of {file}: systemd-analyze not runnable ({e})"
+            );
             return;
         }
     };
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success() && stderr.trim().is_empty(), "systemd-analyze verify {file}:\n{stderr}");
+    assert!(
+        out.status.success() && stderr.trim().is_empty(),
+        "systemd-analyze verify {file}:\n{stderr}"
+    );
 }

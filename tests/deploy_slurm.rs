@@ -116,7 +116,11 @@ fn wait_stats(path: &Path, what: &str, done: impl Fn(&[Value]) -> bool) -> Vec<V
         if done(&lines) {
             return lines;
         }
-        assert!(Instant::now() < deadline, "{what}: not seen in {PATIENCE:?}; last: {:?}", lines.last());
+        assert!(
+            Instant::now() < deadline,
+            "{what}: not seen in {PATIENCE:?}; last: {:?}",
+            lines.last()
+        );
         std::thread::sleep(Duration::from_millis(200));
     }
 }
@@ -187,16 +191,25 @@ fn slurm_job_array_workers_join_render_and_leave() {
     assert_eq!(squeue.lines().filter(|l| l.contains("RUNNING")).count(), 2, "{squeue}");
     let from = joined.len();
     let rendered = wait_stats(&stats_file, "frames rendered by both workers", |l| {
-        l.len() > from + 4 && l[from..].iter().filter(|s| s["jobs_back"].as_u64() == Some(16)).count() >= 3
+        l.len() > from + 4
+            && l[from..].iter().filter(|s| s["jobs_back"].as_u64() == Some(16)).count() >= 3
     });
     let last = rendered.last().unwrap();
-    eprintln!("master: frame {} shown, {} of 16 jobs back, {} workers", last["frame"], last["jobs_back"], workers(last));
+    eprintln!(
+        "master: frame {} shown, {} of 16 jobs back, {} workers",
+        last["frame"],
+        last["jobs_back"],
+        workers(last)
+    );
 
     cluster.slurm("scancel", &[&job]);
     let gone = wait_stats(&stats_file, "the workers gone after scancel", |l| {
         l.last().is_some_and(|s| workers(s) == 0)
     });
-    eprintln!("after scancel {job}: master frame {} shows 0 workers", gone.last().unwrap()["frame"]);
+    eprintln!(
+        "after scancel {job}: master frame {} shows 0 workers",
+        gone.last().unwrap()["frame"]
+    );
     // Completing tasks may show for a moment after their processes are gone.
     let deadline = Instant::now() + PATIENCE;
     while !cluster.slurm("squeue", &["-h", "-j", &job]).trim().is_empty() {
@@ -205,7 +218,8 @@ fn slurm_job_array_workers_join_render_and_leave() {
     }
     // Both tasks reached the master: their logs name the master they joined.
     for task in 0..2 {
-        let log = std::fs::read_to_string(dir.join(format!("worker-{job}_{task}.out"))).unwrap_or_default();
+        let log = std::fs::read_to_string(dir.join(format!("worker-{job}_{task}.out")))
+            .unwrap_or_default();
         assert!(!log.contains("ERROR"), "task {task} logged an error:\n{log}");
     }
     assert!(master.0.try_wait().unwrap().is_none(), "the master keeps running without workers");

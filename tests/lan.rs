@@ -34,18 +34,28 @@ fn bench_lan_gets_frames_from_every_host_within_each_link_rate() {
     // second of bandwidth against 6 of compute), so every link test is a saturated one.
     let (hosts, threads, mbit) = (2u64, 2u64, 20u64);
     let out = Command::new(env!("CARGO_BIN_EXE_gridlight"))
-        .args(["bench", "lan", "--json", "--links", &mbit.to_string(), "--hosts", &hosts.to_string()])
+        .args([
+            "bench",
+            "lan",
+            "--json",
+            "--links",
+            &mbit.to_string(),
+            "--hosts",
+            &hosts.to_string(),
+        ])
         .args(["--threads", &threads.to_string(), "--render-ms", "10", "--seconds", "3"])
         .env("RUST_LOG", "warn")
         .output()
         .expect("gridlight runs");
     assert!(out.status.success(), "bench lan failed: {}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8(out.stdout).unwrap();
-    let lines: Vec<Value> = stdout.lines().map(|l| serde_json::from_str(l).expect("JSON")).collect();
+    let lines: Vec<Value> =
+        stdout.lines().map(|l| serde_json::from_str(l).expect("JSON")).collect();
     assert_eq!(lines.len(), 1, "{stdout}");
     let r = &lines[0];
     eprintln!("{r}");
-    for key in ["link_mbit", "hosts", "frames_per_second", "bytes_per_frame", "bandwidth_bound_fps"] {
+    for key in ["link_mbit", "hosts", "frames_per_second", "bytes_per_frame", "bandwidth_bound_fps"]
+    {
         assert!(!r[key].is_null(), "no `{key}` in {r}");
     }
     assert_eq!((r["link_mbit"].as_u64(), r["hosts"].as_u64()), (Some(mbit), Some(hosts)));
@@ -77,9 +87,13 @@ fn bench_lan_gets_frames_from_every_host_within_each_link_rate() {
     let min_frame = 640.0 * 480.0 * 4.0;
     assert!(r["bytes_in_per_frame"].as_f64().unwrap() >= min_frame, "{r}");
     // One frame of slack: a frame whose bytes arrived before the window may complete in it.
-    let (fps, bound) = (r["frames_per_second"].as_f64().unwrap(), r["bandwidth_bound_fps"].as_f64().unwrap());
+    let (fps, bound) =
+        (r["frames_per_second"].as_f64().unwrap(), r["bandwidth_bound_fps"].as_f64().unwrap());
     let seconds = r["seconds"].as_f64().unwrap();
-    assert!(fps * seconds <= bound * seconds * 1.05 + 1.0, "{fps} frames/s beat the bandwidth bound {bound}: {r}");
+    assert!(
+        fps * seconds <= bound * seconds * 1.05 + 1.0,
+        "{fps} frames/s beat the bandwidth bound {bound}: {r}"
+    );
     // Saturated: the links, not the workers, set the pace.
     assert!(bound < r["compute_bound_fps"].as_f64().unwrap(), "{r}");
 }

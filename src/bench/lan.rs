@@ -125,7 +125,8 @@ fn measure(
 ) -> anyhow::Result<LanBench> {
     let label = format!("{} Mbit/s, {} hosts", spec.link_mbit, spec.worker_hosts);
     let bed = Testbed::build(spec).with_context(|| format!("{label}: building the testbed"))?;
-    let config = complete_frames_config(SocketAddr::new(bed.master().address.into(), 0), opts.pipeline);
+    let config =
+        complete_frames_config(SocketAddr::new(bed.master().address.into(), 0), opts.pipeline);
     let handle = netns::run_in(&bed.master().namespace, || {
         master::start(config, bench_state(), AssetStore::new(), Box::new(CountingSink))
     })?
@@ -191,14 +192,21 @@ fn start_workers(
     let mut children = Children::new();
     for host in bed.workers() {
         let mut cmd = bed.command(host, exe);
-        cmd.args(["worker", "--null-render", "--master", &master.to_string(), "--name", &host.name])
-            .args(["--null-render-delay-ms", &opts.render_ms.to_string()])
-            .args(["--threads", &opts.threads.to_string()])
-            .args(["--pipeline", &opts.pipeline.to_string()])
-            .arg("--cache-dir")
-            .arg(cache.join(&host.name))
-            .env("RUST_LOG", "warn")
-            .stdout(Stdio::null());
+        cmd.args([
+            "worker",
+            "--null-render",
+            "--master",
+            &master.to_string(),
+            "--name",
+            &host.name,
+        ])
+        .args(["--null-render-delay-ms", &opts.render_ms.to_string()])
+        .args(["--threads", &opts.threads.to_string()])
+        .args(["--pipeline", &opts.pipeline.to_string()])
+        .arg("--cache-dir")
+        .arg(cache.join(&host.name))
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null());
         children.spawn(cmd).with_context(|| format!("starting the worker on {}", host.name))?;
     }
     Ok(children)

@@ -8,14 +8,13 @@ use super::LanError;
 /// Runs `tool args...` and returns its standard output.
 pub fn run(tool: &'static str, args: &[&str]) -> Result<String, LanError> {
     let command = format!("{tool} {}", args.join(" "));
-    let out = Command::new(tool)
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .map_err(|source| match source.kind() {
-            std::io::ErrorKind::NotFound => LanError::MissingTool(tool),
-            _ => LanError::Spawn { command: command.clone(), source },
-        })?;
+    let out =
+        Command::new(tool).args(args).stdin(Stdio::null()).output().map_err(
+            |source| match source.kind() {
+                std::io::ErrorKind::NotFound => LanError::MissingTool(tool),
+                _ => LanError::Spawn { command: command.clone(), source },
+            },
+        )?;
     if !out.status.success() {
         let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
         return Err(LanError::Command { command, stderr });

@@ -192,7 +192,10 @@ impl Testbed {
     fn add_link(&self, host: &Host) -> Result<(), LanError> {
         let (ns, sw, port) = (host.namespace.as_str(), self.switch.as_str(), host.port.as_str());
         // Both ends are made inside their namespaces: none ever exists in the machine's.
-        ip(&["link", "add", HOST_IFACE, "netns", ns, "type", "veth", "peer", "name", port, "netns", sw])?;
+        ip(&[
+            "link", "add", HOST_IFACE, "netns", ns, "type", "veth", "peer", "name", port, "netns",
+            sw,
+        ])?;
         ip(&["-n", sw, "link", "set", port, "master", "br0"])?;
         ip(&["-n", sw, "link", "set", port, "up"])?;
         let cidr = format!("{}/24", host.address);

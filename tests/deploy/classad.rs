@@ -54,7 +54,8 @@ fn lex(s: &str) -> Result<Vec<Tok>, String> {
         let c = chars[i];
         if c.is_whitespace() {
             i += 1;
-        } else if c.is_ascii_digit() || (c == '.' && chars.get(i + 1).is_some_and(char::is_ascii_digit))
+        } else if c.is_ascii_digit()
+            || (c == '.' && chars.get(i + 1).is_some_and(char::is_ascii_digit))
         {
             while i < chars.len() && (chars[i].is_ascii_alphanumeric() || chars[i] == '.') {
                 i += 1;
@@ -190,13 +191,26 @@ mod tests {
             attributes("(LoadAvg - CondorLoadAvg) <= 0.3 && KeyboardIdle > (15 * 60)").unwrap(),
             ["LoadAvg", "CondorLoadAvg", "KeyboardIdle"]
         );
-        assert_eq!(attributes("(time() - EnteredCurrentActivity) > 600").unwrap(), ["EnteredCurrentActivity"]);
-        assert_eq!(attributes("Activity == \"Suspended\" ? True : MY.State =?= \"Claimed\"").unwrap(), ["Activity", "State"]);
+        assert_eq!(
+            attributes("(time() - EnteredCurrentActivity) > 600").unwrap(),
+            ["EnteredCurrentActivity"]
+        );
+        assert_eq!(
+            attributes("Activity == \"Suspended\" ? True : MY.State =?= \"Claimed\"").unwrap(),
+            ["Activity", "State"]
+        );
     }
 
     #[test]
     fn malformed_expressions_are_refused() {
-        for bad in ["(KeyboardIdle > 60", "KeyboardIdle >", "&& LoadAvg", "LoadAvg 3", "nosuch(1)", "a = b"] {
+        for bad in [
+            "(KeyboardIdle > 60",
+            "KeyboardIdle >",
+            "&& LoadAvg",
+            "LoadAvg 3",
+            "nosuch(1)",
+            "a = b",
+        ] {
             assert!(attributes(bad).is_err(), "{bad} accepted");
         }
     }
