@@ -200,7 +200,7 @@ fn process_cpu_us() -> f64 {
 }
 
 /// A sink that drops frames: the benchmark measures assembly, not output.
-struct CountingSink;
+pub(crate) struct CountingSink;
 
 impl FrameSink for CountingSink {
     fn show(&mut self, _frame: ShownFrame) -> Result<(), SinkError> {

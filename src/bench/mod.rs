@@ -3,6 +3,10 @@
 //!
 //! - [`trace`]: single-thread throughput of the path-tracing kernel.
 //! - [`master`]: frames per second and CPU per job of the master with null-render workers.
+//! - [`owner_impact`]: a desk owner's CPU-bound program alone and beside a rendering
+//!   worker ([`busy_loop`] is that program).
 
+pub mod busy_loop;
 pub mod master;
+pub mod owner_impact;
 pub mod trace;

@@ -1,0 +1,91 @@
+//! `--when-idle`: the worker stops taking jobs while its desk's owner is active and
+//! takes them again once the machine has been idle for a while (DESIGN.md decision 9).
+//!
+//! A monitor thread samples the machine every `sample_every` ([`cpu`]: CPU times from
+//! `/proc`; [`input`]: keyboard/mouse idle time where the platform tells), feeds the
+//! samples to the pure [`decide::Decider`] and publishes each change of [`Activity`] on
+//! a watch channel; every connection of the worker follows it (`session`): it tells the
+//! master `Paused` with the reason, drops the jobs it holds (the master never recomputes
+//! them) and sends `Resumed` and fresh credits when the decision turns. The monitor runs
+//! at normal priority (it wakes once per sample and reads two small files), so that a
+//! pause is noticed at once even when the owner keeps every CPU busy and the render
+//! threads, at `SCHED_IDLE`, get nothing.
+
+pub mod cpu;
+pub mod decide;
+pub mod input;
+
+use std::time::{Duration, Instant};
+
+use tokio::sync::watch;
+use tokio_util::sync::CancellationToken;
+use tracing::{info, warn};
+
+pub use decide::{Activity, Decider, IdlePolicy, Sample};
+pub use input::{InputIdle, InputSource};
+
+/// Why the machine could not be sampled.
+#[derive(Debug, thiserror::Error)]
+pub enum IdleError {
+    #[error("reading {0}")]
+    Read(String),
+    #[error("parsing {0}")]
+    Parse(String),
+}
+
+/// Starts the monitor thread; the receiver always holds the latest decision. The thread
+/// ends when `cancel` fires or every receiver is gone.
+pub fn spawn_monitor(
+    policy: IdlePolicy,
+    mut input: Box<dyn InputSource>,
+    cancel: CancellationToken,
+) -> std::io::Result<watch::Receiver<Activity>> {
+    let (tx, rx) = watch::channel(Activity::Working);
+    let first_input = input.idle();
+    let cpu_ok = cpu::read().map_err(|e| warn!(cause = %e, "no CPU times: the CPU criterion is off"));
+    info!(
+        cpu_percent = policy.cpu_percent,
+        cpu_window_s = policy.cpu_window.as_secs_f32(),
+        input_idle_s = policy.input_idle.as_secs_f32(),
+        resume_after_s = policy.resume_after.as_secs_f32(),
+        input = if first_input == InputIdle::Unknown { "unknown here (the CPU decides alone)" } else { "known" },
+        cpu = if cpu_ok.is_ok() { "known" } else { "unknown" },
+        "when idle: pausing while the desk's owner is active"
+    );
+    std::thread::Builder::new().name("owner-monitor".into()).spawn(move || {
+        let started = Instant::now();
+        let mut decider = Decider::new(policy);
+        while !cancel.is_cancelled() && !tx.is_closed() {
+            let sample = Sample { at: started.elapsed(), cpu: cpu::read().ok(), input: input.idle() };
+            let now = decider.observe(sample).clone();
+            // Published when it pauses, resumes or pauses for another kind of reason; the
+            // reason's figures change every sample and need not travel each time.
+            let changed = match (&*tx.borrow(), &now) {
+                (Activity::Working, Activity::Working) => false,
+                (Activity::Paused(a), Activity::Paused(b)) => a.kind() != b.kind(),
+                _ => true,
+            };
+            if changed {
+                match &now {
+                    Activity::Paused(reason) => info!(%reason, "owner active: pausing"),
+                    Activity::Working => info!("owner idle: resuming"),
+                }
+                let _ = tx.send(now);
+            }
+            sleep_unless_cancelled(policy.sample_every, &cancel);
+        }
+    })?;
+    Ok(rx)
+}
+
+fn sleep_unless_cancelled(d: Duration, cancel: &CancellationToken) {
+    let step = Duration::from_millis(100);
+    let end = Instant::now() + d;
+    while !cancel.is_cancelled() {
+        let left = end.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            break;
+        }
+        std::thread::sleep(left.min(step));
+    }
+}
