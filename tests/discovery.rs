@@ -125,7 +125,8 @@ fn a_loopback_master_announces_on_the_documented_port_unless_told_not_to() {
     let pid = std::process::id();
     let (loud, quiet) = (format!("loud-{pid}"), format!("quiet-{pid}"));
     let _a = Master::start(&dir.path().join("a"), "127.0.0.1:0", &["--name", &loud]);
-    let _b = Master::start(&dir.path().join("b"), "127.0.0.1:0", &["--name", &quiet, "--no-announce"]);
+    let _b =
+        Master::start(&dir.path().join("b"), "127.0.0.1:0", &["--name", &quiet, "--no-announce"]);
     let Some(names) = names_heard_on_the_default_port(Duration::from_secs(2)) else { return };
     assert!(names.contains(&loud), "the announcing master was not heard: {names:?}");
     assert!(!names.contains(&quiet), "--no-announce was not honoured");

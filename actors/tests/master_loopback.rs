@@ -452,6 +452,7 @@ fn credits_or_results_while_paused_and_resuming_unpaused_end_the_connection() {
     let reason = q.expect_rejected();
     assert!(reason.contains("Resumed while the worker is not paused"), "{reason}");
     eventually("no worker counted", || {
-        Counters::get(&m.counters().workers) == 0 && Counters::get(&m.counters().paused_workers) == 0
+        Counters::get(&m.counters().workers) == 0
+            && Counters::get(&m.counters().paused_workers) == 0
     });
 }

@@ -134,7 +134,11 @@ pub struct AnnounceArgs {
 impl AnnounceArgs {
     /// What the master is told.
     pub fn options(&self) -> AnnounceOptions {
-        AnnounceOptions { enabled: !self.no_announce, to: self.announce_to, name: self.name.clone() }
+        AnnounceOptions {
+            enabled: !self.no_announce,
+            to: self.announce_to,
+            name: self.name.clone(),
+        }
     }
 }
 

@@ -109,7 +109,10 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
 /// The master found by listening for announcements.
 fn discovered(args: &Args, file: &WorkerFile) -> anyhow::Result<String> {
     let opts = DiscoverOptions {
-        port: args.discovery_port.or(file.discovery_port).unwrap_or(DiscoverOptions::default().port),
+        port: args
+            .discovery_port
+            .or(file.discovery_port)
+            .unwrap_or(DiscoverOptions::default().port),
         master_name: args.master_name.clone().or(file.master_name.clone()),
         timeout: match args.discover_timeout.or(file.discover_timeout_s) {
             Some(s) => seconds("--discover-timeout", s)?,
@@ -142,8 +145,16 @@ fn worker_config(args: Args, file: WorkerFile, master: String) -> anyhow::Result
         };
         let policy = IdlePolicy {
             cpu_percent: args.idle_cpu_percent.or(file.idle.cpu_percent).unwrap_or(d.cpu_percent),
-            cpu_window: secs("--idle-cpu-window", args.idle_cpu_window.or(file.idle.cpu_window_s), d.cpu_window)?,
-            input_idle: secs("--idle-input", args.idle_input.or(file.idle.input_idle_s), d.input_idle)?,
+            cpu_window: secs(
+                "--idle-cpu-window",
+                args.idle_cpu_window.or(file.idle.cpu_window_s),
+                d.cpu_window,
+            )?,
+            input_idle: secs(
+                "--idle-input",
+                args.idle_input.or(file.idle.input_idle_s),
+                d.input_idle,
+            )?,
             resume_after: secs(
                 "--idle-resume-after",
                 args.idle_resume_after.or(file.idle.resume_after_s),
@@ -188,10 +199,9 @@ mod tests {
     use clap::Parser;
 
     fn parse(args: &[&str]) -> Args {
-        let cli = crate::cli::Cli::try_parse_from(
-            ["gridlight", "worker"].iter().chain(args).copied(),
-        )
-        .expect("valid command line");
+        let cli =
+            crate::cli::Cli::try_parse_from(["gridlight", "worker"].iter().chain(args).copied())
+                .expect("valid command line");
         match cli.command {
             crate::cli::Command::Worker(a) => a,
             other => panic!("{other:?}"),
@@ -251,7 +261,12 @@ mod tests {
     #[test]
     fn master_and_master_name_exclude_each_other() {
         let r = crate::cli::Cli::try_parse_from([
-            "gridlight", "worker", "--master", "m:1", "--master-name", "lab",
+            "gridlight",
+            "worker",
+            "--master",
+            "m:1",
+            "--master-name",
+            "lab",
         ]);
         assert!(r.is_err());
     }

@@ -109,7 +109,10 @@ mod tests {
         )
         .unwrap();
         assert_eq!(f.master.as_deref(), Some("m:7840"));
-        assert_eq!((f.threads, f.priority, f.when_idle), (Some(3), Some(Priority::Normal), Some(true)));
+        assert_eq!(
+            (f.threads, f.priority, f.when_idle),
+            (Some(3), Some(Priority::Normal), Some(true))
+        );
         assert_eq!((f.idle.cpu_percent, f.idle.resume_after_s), (Some(40.0), Some(5.0)));
         let secret = f.secret_file.unwrap();
         assert!(secret.is_absolute() && secret.ends_with("grid.secret"), "{}", secret.display());

@@ -54,22 +54,28 @@ pub struct Found {
 pub enum DiscoverError {
     #[error("cannot listen for master announcements on UDP port {port}: {cause}")]
     Listen { port: u16, cause: std::io::Error },
-    #[error("no gridlight master announced itself on UDP port {port} within {secs:.0} s{heard}; \
+    #[error(
+        "no gridlight master announced itself on UDP port {port} within {secs:.0} s{heard}; \
              start one on this network, or name it with --master HOST:PORT (needed when the \
-             master runs with --no-announce or on another network segment)")]
+             master runs with --no-announce or on another network segment)"
+    )]
     NoneHeard { port: u16, secs: f64, heard: String },
-    #[error("no master named {name:?} announced itself within {secs:.0} s; heard:{heard}\n\
-             choose one of these with --master-name NAME, or name a master with --master HOST:PORT")]
+    #[error(
+        "no master named {name:?} announced itself within {secs:.0} s; heard:{heard}\n\
+             choose one of these with --master-name NAME, or name a master with --master HOST:PORT"
+    )]
     NameNotHeard { name: String, secs: f64, heard: String },
-    #[error("several masters announce themselves:{heard}\n\
-             choose one with --master-name NAME, or name one with --master HOST:PORT")]
+    #[error(
+        "several masters announce themselves:{heard}\n\
+             choose one with --master-name NAME, or name one with --master HOST:PORT"
+    )]
     Several { heard: String },
 }
 
 /// Listens until a master can be chosen, the timeout passes, or the choice is ambiguous.
 pub fn discover(opts: &DiscoverOptions) -> Result<Found, DiscoverError> {
-    let socket = listen(opts.port)
-        .map_err(|cause| DiscoverError::Listen { port: opts.port, cause })?;
+    let socket =
+        listen(opts.port).map_err(|cause| DiscoverError::Listen { port: opts.port, cause })?;
     info!(port = opts.port, master_name = ?opts.master_name, "listening for masters");
     let started = Instant::now();
     let mut heard: BTreeMap<(String, SocketAddr), Announcement> = BTreeMap::new();
@@ -91,7 +97,14 @@ pub fn discover(opts: &DiscoverOptions) -> Result<Found, DiscoverError> {
         let _ = socket.set_read_timeout(Some(wait));
         let (n, from) = match socket.recv_from(&mut buf) {
             Ok(v) => v,
-            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => continue,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) =>
+            {
+                continue
+            }
             Err(e) => return Err(DiscoverError::Listen { port: opts.port, cause: e }),
         };
         match Announcement::decode(&buf[..n]) {
@@ -145,7 +158,11 @@ fn not_found(
         _ => DiscoverError::NoneHeard {
             port: opts.port,
             secs,
-            heard: if heard.is_empty() { String::new() } else { format!(" in this worker's protocol;{}", list(heard)) },
+            heard: if heard.is_empty() {
+                String::new()
+            } else {
+                format!(" in this worker's protocol;{}", list(heard))
+            },
         },
     }
 }
@@ -219,7 +236,10 @@ mod tests {
     fn several_masters_without_a_name_is_an_error_listing_them() {
         let h = heard(&[("a", PROTOCOL_VERSION), ("b", PROTOCOL_VERSION)]);
         let err = choose(&opts(None), &h, true).unwrap_err().to_string();
-        assert!(err.contains("\"a\"") && err.contains("\"b\"") && err.contains("--master-name"), "{err}");
+        assert!(
+            err.contains("\"a\"") && err.contains("\"b\"") && err.contains("--master-name"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -44,9 +44,9 @@ use backoff::Backoff;
 use idle::{Activity, IdlePolicy};
 pub use priority::Priority;
 pub use render::RendererKind;
-use tokio::sync::watch;
 use session::{SessionConfig, SessionEnd, SessionProgress};
 use shared::Shared;
+use tokio::sync::watch;
 
 /// Jobs a worker holds at once when not told otherwise (DESIGN.md decision 7).
 pub const DEFAULT_PIPELINE: u32 = 2;
@@ -178,12 +178,10 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
     let activity = match config.when_idle.clone() {
         WhenIdle::Off => watch::channel(Activity::Working).1,
         WhenIdle::Follow(rx) => rx,
-        WhenIdle::Monitor(policy) => idle::spawn_monitor(
-            policy,
-            Box::new(idle::input::FirstKnown::detect()),
-            cancel.clone(),
-        )
-        .map_err(WorkerError::Runtime)?,
+        WhenIdle::Monitor(policy) => {
+            idle::spawn_monitor(policy, Box::new(idle::input::FirstKnown::detect()), cancel.clone())
+                .map_err(WorkerError::Runtime)?
+        }
     };
     let mut tasks = tokio::task::JoinSet::new();
     for i in 0..config.threads.max(1) {

@@ -182,8 +182,11 @@ where
     let mut live: HashSet<(FrameNo, SetNo)> = HashSet::new();
     let mut paused = false;
     let mut follow = true;
-    match activity.borrow_and_update().clone() {
-        Activity::Working => conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?,
+    let now = activity.borrow_and_update().clone();
+    match now {
+        Activity::Working => {
+            conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?
+        }
         now => follow_activity(&mut conn, now, &mut paused, &mut live, &render, config).await?,
     }
 

@@ -227,4 +227,3 @@ pub fn worker(master: SocketAddr, cache: &Path, name: &str, delay_ms: u32, extra
 pub fn u(v: &Value, key: &str) -> u64 {
     v[key].as_u64().unwrap_or_else(|| panic!("stats key `{key}` missing or not a count: {v}"))
 }
-

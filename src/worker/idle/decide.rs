@@ -242,8 +242,8 @@ mod tests {
         let Activity::Paused(PauseReason::OwnerCpu { percent, window_s }) = &a[at] else {
             panic!("{:?}", a[at])
         };
-        // One second of the build in a window of 4 (others' share: 197 of 200 ticks),
-        // against 3 of rendering (4 − 192 + ... ≈ 2 %): about 26 %.
+        // A window of 4 s: one second of the build (197 of 200 ticks are others') and
+        // three of rendering (4 of 200 each): 209 / 800, about 26 %.
         assert!((25.0..30.0).contains(percent), "{percent}");
         assert_eq!(*window_s, 4.0);
     }

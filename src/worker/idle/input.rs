@@ -53,7 +53,11 @@ impl InputSource for FirstKnown {
     }
 
     fn idle(&mut self) -> InputIdle {
-        self.0.iter_mut().map(|s| s.idle()).find(|i| *i != InputIdle::Unknown).unwrap_or(InputIdle::Unknown)
+        self.0
+            .iter_mut()
+            .map(|s| s.idle())
+            .find(|i| *i != InputIdle::Unknown)
+            .unwrap_or(InputIdle::Unknown)
     }
 }
 
@@ -128,9 +132,7 @@ pub fn parse_logind(text: &str, now: Duration) -> InputIdle {
         // No session has ever reported: nothing is known.
         (_, Some(0)) | (_, None) | (None, _) => InputIdle::Unknown,
         (Some("no"), Some(_)) => InputIdle::Known(Duration::ZERO),
-        (Some("yes"), Some(us)) => {
-            InputIdle::Known(now.saturating_sub(Duration::from_micros(us)))
-        }
+        (Some("yes"), Some(us)) => InputIdle::Known(now.saturating_sub(Duration::from_micros(us))),
         (Some(_), Some(_)) => InputIdle::Unknown,
     }
 }
