@@ -9,8 +9,7 @@
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gridlight::worker::render::null_radiance;
 use gridlight_actors::codec::{to_frame, WorkerCodec};

@@ -9,7 +9,7 @@
 //! PNG into `$GRIDLIGHT_WINDOW_SHOTS` when set, to be looked at.
 //! Without `Xvfb` on the machine the test says it is skipped and why (`.ci/run` installs it).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
