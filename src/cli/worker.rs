@@ -119,13 +119,7 @@ fn discovered(args: &Args, file: &WorkerFile) -> anyhow::Result<String> {
             None => discover::DEFAULT_TIMEOUT,
         },
     };
-    match discover::discover(&opts) {
-        Ok(found) => Ok(found.addr.to_string()),
-        Err(err) => {
-            eprintln!("gridlight worker: {err}");
-            Err(err.into())
-        }
-    }
+    Ok(discover::discover(&opts)?.addr.to_string())
 }
 
 /// The worker's configuration: command line and environment over file over defaults.
