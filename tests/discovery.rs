@@ -35,6 +35,8 @@ fn discovering_worker(port: u16, cache: &Path, extra: &[&str]) -> Proc {
         "--null-render",
         "--null-render-delay-ms",
         "2",
+        "--priority",
+        "normal",
         "--cache-dir",
         cache.to_str().unwrap(),
     ];

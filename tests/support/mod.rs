@@ -217,6 +217,10 @@ pub fn worker(master: SocketAddr, cache: &Path, name: &str, delay_ms: u32, extra
         "--null-render",
         "--null-render-delay-ms",
         &delay,
+        // A stand-in for another machine: at idle priority its simulated renders would
+        // wait behind every process of this (loaded) test host.
+        "--priority",
+        "normal",
         "--cache-dir",
         cache.to_str().unwrap(),
     ];
