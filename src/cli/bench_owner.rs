@@ -46,7 +46,7 @@ pub struct BusyLoopArgs {
 
 /// Runs the benchmark and prints its JSON object.
 pub fn run_owner_impact(args: OwnerImpactArgs, global: &GlobalArgs) -> anyhow::Result<()> {
-    if args.runs == 0 || !(args.seconds > 0.0) {
+    if args.runs == 0 || args.seconds.is_nan() || args.seconds <= 0.0 {
         anyhow::bail!("--runs and --seconds must be positive");
     }
     let report = owner_impact::run(&OwnerImpactOptions {

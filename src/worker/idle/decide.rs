@@ -134,7 +134,7 @@ impl Decider {
         }
         let (percent, span) = cpu?;
         (percent > self.policy.cpu_percent)
-            .then(|| PauseReason::OwnerCpu { percent, window_s: span.as_secs_f32() })
+            .then_some(PauseReason::OwnerCpu { percent, window_s: span.as_secs_f32() })
     }
 
     /// Records `cpu` and returns the other processes' share of all CPUs (%) over the
