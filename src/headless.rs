@@ -48,6 +48,10 @@ pub struct Summary {
     pub dropped_duplicate: u64,
     pub dropped_unknown: u64,
     pub max_workers: u64,
+    /// Most workers paused at once (their desks' owners were active).
+    pub max_paused_workers: u64,
+    /// Shown frames × paused workers, by reason kind (`owner_cpu`, `owner_input`).
+    pub paused_by_reason: std::collections::BTreeMap<String, u64>,
     pub bytes_in: u64,
     pub bytes_out: u64,
     pub seconds: f64,
@@ -126,6 +130,10 @@ impl HeadlessSink {
         sum.dropped_duplicate = s.dropped_duplicate;
         sum.dropped_unknown = s.dropped_unknown;
         sum.max_workers = sum.max_workers.max(s.workers);
+        sum.max_paused_workers = sum.max_paused_workers.max(s.paused_workers);
+        for p in &s.paused {
+            *sum.paused_by_reason.entry(p.kind.to_owned()).or_default() += 1;
+        }
         sum.bytes_in = s.bytes_in;
         sum.bytes_out = s.bytes_out;
         self.q_sum += s.q;

@@ -15,7 +15,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
+use gridlight_actors::announcer::AnnounceConfig;
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::discovery;
 use gridlight_actors::master::{self, MasterConfig, MasterReport};
 use gridlight_actors::protocol::SetsConfig;
 use tracing::{info, warn};
@@ -48,10 +50,38 @@ pub struct MasterOptions {
     /// Jobs a worker may hold (k).
     pub pipeline: u32,
     pub secret: Option<Vec<u8>>,
+    /// Announcing the master on the LAN.
+    pub announce: AnnounceOptions,
     pub script: Option<PathBuf>,
     /// Stop after this many shown frames (`None`: until Ctrl-C).
     pub frames: Option<u64>,
     pub headless: HeadlessOptions,
+}
+
+/// Whether and how the master announces itself (`gridlight_actors::discovery`).
+#[derive(Clone, Debug, Default)]
+pub struct AnnounceOptions {
+    pub enabled: bool,
+    /// Destination; default [`discovery::default_target`] of the listen address.
+    pub to: Option<SocketAddr>,
+    /// Announced name; default the host name.
+    pub name: Option<String>,
+}
+
+impl AnnounceOptions {
+    /// The actors' announce configuration for a master listening on `listen`.
+    fn config(&self, listen: SocketAddr, scene: &std::path::Path) -> Option<AnnounceConfig> {
+        self.enabled.then(|| AnnounceConfig {
+            to: self.to.unwrap_or_else(|| discovery::default_target(listen)),
+            name: self
+                .name
+                .clone()
+                .or_else(crate::worker::host_name)
+                .unwrap_or_else(|| "gridlight".into()),
+            scene: scene.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned()),
+            interval: discovery::ANNOUNCE_INTERVAL,
+        })
+    }
 }
 
 /// A scene loaded and ready to serve.
@@ -95,6 +125,7 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     config.pipeline = opts.pipeline.max(1);
     config.secret = opts.secret.clone();
     config.max_frames = opts.frames;
+    config.announce = opts.announce.config(opts.listen, &opts.scene);
     Ok(Prepared { config, state: loaded.state, store, assets: Arc::new(loaded.assets), params })
 }
 

@@ -16,7 +16,7 @@ use common::{scene, Peer};
 use gridlight::faults::invariants::{lock, Checker, CheckingSink, Limits};
 use gridlight::faults::proxy::Proxy;
 use gridlight::worker::render::null_radiance;
-use gridlight::worker::{run_until, RendererKind, WorkerConfig};
+use gridlight::worker::{run_until, Priority, RendererKind, WhenIdle, WorkerConfig};
 use gridlight_actors::asset_store::AssetStore;
 use gridlight_actors::master::start;
 use gridlight_actors::protocol::*;
@@ -78,6 +78,8 @@ fn unauthenticated_peers_get_nothing_and_the_secret_never_crosses_the_wire() {
         name: "honest".into(),
         pipeline: 2,
         renderer: RendererKind::Null { delay_ms: 1 },
+        priority: Priority::Idle,
+        when_idle: WhenIdle::Off,
     };
     let stop = cancel.clone();
     let worker = thread::spawn(move || {

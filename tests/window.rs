@@ -9,7 +9,7 @@
 //! PNG into `$GRIDLIGHT_WINDOW_SHOTS` when set, to be looked at.
 //! Without `Xvfb` on the machine the test says it is skipped and why (`.ci/run` installs it).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -19,59 +19,13 @@ use x11rb::protocol::xproto::{
 };
 use x11rb::rust_connection::RustConnection;
 
+mod support;
+use support::xvfb::Xvfb;
+
 const WIDTH: u16 = 1280;
 const HEIGHT: u16 = 800;
 /// Seconds after the start at which the script turns the red wall blue.
 const EDIT_AT_S: f64 = 25.0;
-
-/// An Xvfb server on a display of its own, killed when dropped.
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Xvfb {
-    fn start() -> Option<Self> {
-        let which = Command::new("sh").args(["-c", "command -v Xvfb"]).output().ok()?;
-        if !which.status.success() {
-            return None;
-        }
-        for n in 0..50 {
-            let number = 140 + (std::process::id() as usize + n) % 400;
-            if Path::new(&format!("/tmp/.X{number}-lock")).exists() {
-                continue;
-            }
-            let mut child = Command::new("Xvfb")
-                .arg(format!(":{number}"))
-                .args(["-screen", "0", &format!("{WIDTH}x{HEIGHT}x24"), "-nolisten", "tcp"])
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()
-                .ok()?;
-            let socket = PathBuf::from(format!("/tmp/.X11-unix/X{number}"));
-            let deadline = Instant::now() + Duration::from_secs(10);
-            while Instant::now() < deadline {
-                if socket.exists() {
-                    return Some(Self { child, display: format!(":{number}") });
-                }
-                if child.try_wait().ok().flatten().is_some() {
-                    break; // lost a race for this display number
-                }
-                std::thread::sleep(Duration::from_millis(50));
-            }
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-        None
-    }
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 /// One screenshot of the whole screen, RGB.
 struct Shot {
@@ -221,7 +175,7 @@ fn wait_for_shot(
 
 #[test]
 fn the_demo_window_shows_the_cornell_box_follows_edits_and_closes_cleanly() {
-    let Some(xvfb) = Xvfb::start() else {
+    let Some(xvfb) = Xvfb::start(WIDTH, HEIGHT) else {
         eprintln!("SKIPPED: no Xvfb on this machine (apt-get install xvfb; .ci/run does)");
         return;
     };

@@ -9,11 +9,12 @@
 use std::time::Duration;
 
 use futures::{SinkExt, StreamExt};
-use gridlight::worker::{self, RendererKind, WorkerConfig, WorkerError};
+use gridlight::worker::idle::Activity;
+use gridlight::worker::{self, Priority, RendererKind, WhenIdle, WorkerConfig, WorkerError};
 use gridlight_actors::codec::MasterCodec;
 use gridlight_actors::packing::decode_rgb9e5;
 use gridlight_actors::protocol::{
-    AssetEntry, MasterMsg, Partition, SetsConfig, WorkerMsg, PROTOCOL_VERSION,
+    AssetEntry, MasterMsg, Partition, PauseReason, SetsConfig, WorkerMsg, PROTOCOL_VERSION,
 };
 use gridlight_actors::sets::SetTable;
 use gridlight_actors::state::{Camera, RenderSettings, Resolution, SceneState};
@@ -59,6 +60,8 @@ fn config(master: String, cache: &std::path::Path, secret: Option<&[u8]>) -> Wor
         name: "test".into(),
         pipeline: 2,
         renderer: RendererKind::Null { delay_ms: 0 },
+        priority: Priority::Idle,
+        when_idle: WhenIdle::Off,
     }
 }
 
@@ -272,4 +275,82 @@ async fn a_worker_without_a_secret_stops_when_the_master_requires_one() {
     peer.send(MasterMsg::Challenge { nonce: [1; 32], auth_required: true }).await.unwrap();
     let outcome = tokio::time::timeout(STEP, worker).await.expect("worker gave up").unwrap();
     assert!(matches!(outcome, Err(WorkerError::NeedSecret)), "{outcome:?}");
+}
+
+/// The next message other than a heartbeat within `wait`, if any.
+async fn recv_within(peer: &mut Peer, wait: Duration) -> Option<WorkerMsg> {
+    let deadline = tokio::time::Instant::now() + wait;
+    loop {
+        match tokio::time::timeout_at(deadline, peer.next()).await {
+            Err(_) => return None,
+            Ok(Some(Ok(WorkerMsg::Heartbeat))) => continue,
+            Ok(Some(Ok(msg))) => return Some(msg),
+            Ok(other) => panic!("connection ended: {other:?}"),
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pausing_worker_tells_the_master_drops_its_jobs_and_resumes_with_fresh_credits() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let cancel = CancellationToken::new();
+    let (owner, activity) = tokio::sync::watch::channel(Activity::Working);
+    let mut c = config(listener.local_addr().unwrap().to_string(), cache.path(), None);
+    // A render thread that takes a while per job, so that jobs are held when it pauses.
+    c.renderer = RendererKind::Null { delay_ms: 300 };
+    c.when_idle = WhenIdle::Follow(activity);
+    let worker = tokio::spawn(worker::run_until(c, cancel.clone()));
+
+    let mut peer = accept(&listener).await;
+    handshake(&mut peer, None, vec![]).await;
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
+    peer.send(MasterMsg::State(Box::new(state(1)))).await.unwrap();
+    for set in [0, 1] {
+        peer.send(MasterMsg::Job { frame: 1, set, state_version: 1 }).await.unwrap();
+    }
+    // The owner comes back while both jobs are held (one rendering, one queued).
+    let reason = PauseReason::OwnerInput { seconds_ago: 1.0 };
+    owner.send(Activity::Paused(reason.clone())).unwrap();
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Paused { reason });
+    // A job that was on its way is dropped too; nothing comes back for any of them.
+    peer.send(MasterMsg::Job { frame: 2, set: 0, state_version: 1 }).await.unwrap();
+    let sent = recv_within(&mut peer, Duration::from_millis(1500)).await;
+    assert!(sent.is_none(), "a paused worker sent {sent:?}");
+
+    owner.send(Activity::Working).unwrap();
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Resumed);
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
+    peer.send(MasterMsg::Job { frame: 3, set: 4, state_version: 1 }).await.unwrap();
+    match recv(&mut peer).await {
+        WorkerMsg::Result(r) => assert_eq!((r.frame, r.set), (3, 4)),
+        other => panic!("expected the new job's result, got {other:?}"),
+    }
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 1 });
+
+    cancel.cancel();
+    let outcome = tokio::time::timeout(STEP, worker).await.expect("worker stopped").unwrap();
+    assert!(outcome.is_ok(), "{outcome:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_that_starts_paused_takes_no_job_until_the_owner_leaves() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let cancel = CancellationToken::new();
+    let reason = PauseReason::OwnerCpu { percent: 90.0, window_s: 10.0 };
+    let (owner, activity) = tokio::sync::watch::channel(Activity::Paused(reason.clone()));
+    let mut c = config(listener.local_addr().unwrap().to_string(), cache.path(), None);
+    c.when_idle = WhenIdle::Follow(activity);
+    let worker = tokio::spawn(worker::run_until(c, cancel.clone()));
+
+    let mut peer = accept(&listener).await;
+    handshake(&mut peer, None, vec![]).await;
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Paused { reason });
+    owner.send(Activity::Working).unwrap();
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Resumed);
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
+    cancel.cancel();
+    let outcome = tokio::time::timeout(STEP, worker).await.expect("worker stopped").unwrap();
+    assert!(outcome.is_ok(), "{outcome:?}");
 }

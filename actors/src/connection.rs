@@ -5,7 +5,8 @@
 //! turns the worker's `Ready` credits into requests to the scheduler (never more than
 //! `k` jobs held), sends each state version before the first job naming it, validates
 //! every result (its integrity tag first, then against the jobs it holds) and forwards
-//! it to the frame assembler, and
+//! it to the frame assembler, lets a worker pause while its desk's owner is active (the
+//! jobs it held are lost, it gets none until it resumes, it is counted apart), and
 //! keeps the link alive with heartbeats and a silence timeout. Any protocol violation
 //! ends this connection only, after a `Rejected` that names the problem; every log
 //! line names the peer. The jobs it held are never handed out again.
@@ -27,7 +28,8 @@ use crate::counted_io::CountedWrite;
 use crate::frame_table::ConnId;
 use crate::integrity::ResultKey;
 use crate::protocol::{
-    AssetHash, FrameNo, JobResult, MasterMsg, SetNo, WorkerMsg, ASSET_CHUNK_LEN, PROTOCOL_VERSION,
+    AssetHash, FrameNo, JobResult, MasterMsg, PauseReason, SetNo, WorkerMsg, ASSET_CHUNK_LEN,
+    PROTOCOL_VERSION,
 };
 use crate::scheduler::{JobsAssigned, WorkerLeft, WorkerReady};
 use crate::sets::SetTable;
@@ -109,6 +111,8 @@ pub struct Connection {
     answered_set: HashSet<(FrameNo, SetNo)>,
     /// Credits passed to the scheduler and not yet filled.
     requested: u32,
+    /// Why the worker paused; `None` while it takes jobs.
+    paused: Option<PauseReason>,
     last_recv: Instant,
     last_sent: Instant,
     counters: Arc<Counters>,
@@ -140,6 +144,7 @@ impl Connection {
             answered: VecDeque::new(),
             answered_set: HashSet::new(),
             requested: 0,
+            paused: None,
             last_recv: now,
             last_sent: now,
             counters,
@@ -163,8 +168,10 @@ impl Actor for Connection {
     fn stopped(&mut self, _: &mut Context<Self>) {
         self.links.left_to.do_send(WorkerLeft { conn: self.id });
         if self.welcomed {
-            self.counters.workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
-            self.counters.workers_table.left(self.id);
+            let c = &self.counters;
+            let count = if self.paused.is_some() { &c.paused_workers } else { &c.workers };
+            count.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+            c.workers_table.left(self.id);
         }
         self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed });
         tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer,
@@ -216,8 +223,11 @@ impl WriteHandler<ProtocolError> for Connection {
 impl Handler<JobsAssigned> for Connection {
     type Result = ();
     fn handle(&mut self, msg: JobsAssigned, _: &mut Context<Self>) {
-        if !matches!(self.phase, Phase::Work { .. }) {
-            return; // closing: these jobs are lost like any other, never redone
+        if !matches!(self.phase, Phase::Work { .. }) || self.paused.is_some() {
+            // Closing, or paused before these credits were served: these jobs are lost
+            // like any other, never redone.
+            tracing::debug!(conn = self.id, worker = %self.name, jobs_lost = msg.0.len(), "jobs not sent");
+            return;
         }
         for job in msg.0 {
             self.requested = self.requested.saturating_sub(1);
@@ -298,6 +308,14 @@ impl Connection {
                 });
             }
             (Phase::Work { .. }, WorkerMsg::AssetRequest { hash }) => self.serve_asset(hash, ctx),
+            (Phase::Work { .. }, WorkerMsg::Paused { reason }) => self.pause(reason),
+            (Phase::Work { .. }, msg @ (WorkerMsg::Ready { .. } | WorkerMsg::Result(_)))
+                if self.paused.is_some() =>
+            {
+                let what = kind(&msg);
+                self.reject(format!("unexpected {what} while the worker is paused"), ctx)
+            }
+            (Phase::Work { .. }, WorkerMsg::Resumed) => self.resume(ctx),
             (Phase::Work { .. }, WorkerMsg::Ready { credits }) => self.grant(credits, ctx),
             (Phase::Work { key }, WorkerMsg::Result(result)) => {
                 // Checked before anything else reads the result: a corrupted frame or
@@ -322,6 +340,33 @@ impl Connection {
                 )
             }
         }
+    }
+
+    /// The worker's desk's owner is active: the jobs it holds are lost (never redone), its
+    /// unserved credits void, and it is counted as paused, not live.
+    fn pause(&mut self, reason: PauseReason) {
+        if self.paused.is_none() {
+            tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer, %reason,
+                jobs_lost = self.held.len(), "worker paused");
+            self.held.clear();
+            self.requested = 0;
+            self.links.left_to.do_send(WorkerLeft { conn: self.id });
+            Counters::add(&self.counters.paused_workers, 1);
+            self.counters.workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+        }
+        self.counters.workers_table.paused(self.id, reason.clone());
+        self.paused = Some(reason);
+    }
+
+    /// The worker takes jobs again; its `Ready` follows.
+    fn resume(&mut self, ctx: &mut Context<Self>) {
+        if self.paused.take().is_none() {
+            return self.reject("unexpected Resumed while the worker is not paused".into(), ctx);
+        }
+        tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer, "worker resumed");
+        self.counters.paused_workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+        Counters::add(&self.counters.workers, 1);
+        self.counters.workers_table.resumed(self.id);
     }
 
     /// Passes new credits on to the scheduler, never letting the worker hold more than k.
@@ -486,6 +531,8 @@ fn kind(msg: &WorkerMsg) -> &'static str {
         WorkerMsg::Ready { .. } => "Ready",
         WorkerMsg::Result(_) => "Result",
         WorkerMsg::Heartbeat => "Heartbeat",
+        WorkerMsg::Paused { .. } => "Paused",
+        WorkerMsg::Resumed => "Resumed",
     }
 }
 

@@ -339,6 +339,12 @@ impl Display {
             dropped_duplicate: Counters::get(&c.dropped_duplicate),
             dropped_unknown: Counters::get(&c.dropped_unknown),
             workers: Counters::get(&c.workers),
+            paused_workers: Counters::get(&c.paused_workers),
+            paused: if Counters::get(&c.paused_workers) > 0 {
+                c.workers_table.paused_list()
+            } else {
+                Vec::new()
+            },
             bytes_in: Counters::get(&c.bytes_in),
             bytes_out: Counters::get(&c.bytes_out),
             shown: self.shown,

@@ -8,21 +8,23 @@
 //! # Layout
 //! - Wire: [`protocol`] (messages and invariants), [`codec`] (length-prefixed
 //!   MessagePack), [`auth`] (HMAC challenge), [`integrity`] (per-result tags),
-//!   [`packing`] (RGB9E5), [`sets`] (pixel sets).
+//!   [`packing`] (RGB9E5), [`sets`] (pixel sets), [`discovery`] (the LAN announcement).
 //! - Values: [`state`] (scene state), [`edit`] and [`script`] (changes to it).
 //! - Actors, one per file: [`listener`], [`connection`], [`scheduler`], [`assembler`],
-//!   [`display`], [`scene_holder`]; their pure logic: [`job_queue`], [`frame_table`],
+//!   [`display`], [`scene_holder`], [`announcer`]; their pure logic: [`job_queue`], [`frame_table`],
 //!   [`wait_heuristic`], [`accumulate`]; [`supervisor`] is the restart policy.
 //! - Entry point: [`master::start`] → [`master::MasterHandle`]; frames leave through a
 //!   [`sink::FrameSink`]; [`stats`] and [`asset_store`] support them.
 
 pub mod accumulate;
+pub mod announcer;
 pub mod assembler;
 pub mod asset_store;
 pub mod auth;
 pub mod codec;
 pub mod connection;
 pub mod counted_io;
+pub mod discovery;
 pub mod display;
 pub mod edit;
 pub mod frame_table;

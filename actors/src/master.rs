@@ -16,14 +16,16 @@ use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
+use crate::announcer::{AnnounceConfig, Announcer};
 use crate::assembler::Assembler;
 use crate::asset_store::AssetStore;
 use crate::connection::{ConnectionConfig, ConnectionLinks};
+use crate::discovery::Announcement;
 use crate::display::{Display, DisplayConfig, Report, ReportState, SetPacing, Shutdown};
 use crate::edit::{Edit, EditError};
 use crate::frame_table::ConnId;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
-use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT};
+use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
 use crate::scene_holder::{ApplyEdit, CurrentState, PlayScript, SceneHolder};
 use crate::scheduler::{Scheduler, SchedulerLinks};
 use crate::sets::SetTable;
@@ -63,6 +65,8 @@ pub struct MasterConfig {
     pub peer_timeout: Duration,
     pub initial_frame_time: Duration,
     pub restart: RestartPolicy,
+    /// Announce this master on the LAN (`discovery`); `None`: stay quiet.
+    pub announce: Option<AnnounceConfig>,
 }
 
 impl MasterConfig {
@@ -81,6 +85,7 @@ impl MasterConfig {
             peer_timeout: PEER_TIMEOUT,
             initial_frame_time: DEFAULT_INITIAL_FRAME_TIME,
             restart: RestartPolicy::default(),
+            announce: None,
         }
     }
 }
@@ -144,14 +149,32 @@ pub fn start(
     } else {
         tracing::info!(listen = %local_addr, "workers must prove the shared secret");
     }
+    let announcer = match &config.announce {
+        Some(a) => {
+            let what = Announcement::new(
+                PROTOCOL_VERSION,
+                local_addr,
+                &a.name,
+                &a.scene,
+                config.secret.is_some(),
+            );
+            Some(Announcer::new(a, &what)?)
+        }
+        None => None,
+    };
     let report = Arc::new(Report::default());
     let counters = Arc::new(Counters::default());
     let (tx, rx) = std::sync::mpsc::channel();
     let (r, c) = (report.clone(), counters.clone());
     let thread = std::thread::Builder::new().name("gridlight-master".into()).spawn(move || {
         let system = System::new();
-        let wired =
-            system.block_on(async move { wire(config, state, assets, sink, sets, socket, r, c) });
+        let wired = system.block_on(async move {
+            let actors = wire(config, state, assets, sink, sets, socket, r, c);
+            if let (Ok(_), Some(a)) = (&actors, announcer) {
+                a.start();
+            }
+            actors
+        });
         let ok = wired.is_ok();
         let _ = tx.send(wired.map(|a| (System::current(), a)));
         if ok {

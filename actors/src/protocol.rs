@@ -40,6 +40,19 @@
 //! Without one it is XXH3-128, a checksum against accidental corruption only.
 //! `render_us` is advisory and not covered.
 //!
+//! # Pausing (a guest on someone's desk)
+//! In the work phase a worker may send [`WorkerMsg::Paused`] with a [`PauseReason`]
+//! (its desk's owner is active) and later [`WorkerMsg::Resumed`]. Invariants:
+//! - **A paused worker holds no job.** Every job the connection held when `Paused`
+//!   arrived, and every job already on its way, is lost: the worker renders none of them
+//!   and sends no result for them, and the master never hands them out again.
+//! - **A paused worker gets no job.** Its unserved credits are void; the master sends no
+//!   `Job` until `Resumed`, after which the worker grants fresh credits with `Ready`.
+//!   `Ready`, `Result` or a second `Resumed` while paused, or `Resumed` while not paused,
+//!   ends the connection like any out-of-phase message; `Paused` while paused only
+//!   updates the reason.
+//! - **A paused worker is not a live worker**: statistics count it apart, with its reason.
+//!
 //! Either side sends [`WorkerMsg::Heartbeat`]/[`MasterMsg::Heartbeat`] when it has
 //! been quiet for [`HEARTBEAT_INTERVAL`]; a peer silent for [`PEER_TIMEOUT`] is gone.
 //!
@@ -58,7 +71,8 @@ use crate::state::{SceneState, StateVersion};
 /// 3: every result carries an integrity tag (`JobResult::tag`).
 /// 4: the tag is keyed BLAKE3 instead of HMAC-SHA256 (the key derivation is unchanged).
 /// 5: the tag is 128 bits, and XXH3-128 when no secret is configured.
-pub const PROTOCOL_VERSION: u32 = 5;
+/// 6: `WorkerMsg::Paused` / `WorkerMsg::Resumed` (workers that give way to their desk's owner).
+pub const PROTOCOL_VERSION: u32 = 6;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
@@ -205,6 +219,43 @@ pub enum WorkerMsg {
     Result(JobResult),
     /// Nothing else to say; keeps the connection alive.
     Heartbeat,
+    /// The worker stopped taking jobs (its desk's owner is active); the jobs it held are
+    /// lost. See the module's *Pausing* section.
+    Paused { reason: PauseReason },
+    /// The worker takes jobs again; `Ready` follows.
+    Resumed,
+}
+
+/// Why a worker paused: its desk's owner is using the machine.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum PauseReason {
+    /// Other processes used `percent` % of all CPUs over the last `window_s` seconds.
+    OwnerCpu { percent: f32, window_s: f32 },
+    /// Keyboard or mouse input `seconds_ago` seconds ago.
+    OwnerInput { seconds_ago: f32 },
+}
+
+impl PauseReason {
+    /// A fixed short name, for counting by kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PauseReason::OwnerCpu { .. } => "owner_cpu",
+            PauseReason::OwnerInput { .. } => "owner_input",
+        }
+    }
+}
+
+impl std::fmt::Display for PauseReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PauseReason::OwnerCpu { percent, window_s } => {
+                write!(f, "owner's processes used {percent:.0} % of the CPUs over {window_s:.0} s")
+            }
+            PauseReason::OwnerInput { seconds_ago } => {
+                write!(f, "keyboard or mouse used {seconds_ago:.0} s ago")
+            }
+        }
+    }
 }
 
 /// The rendered pixels of one job.

@@ -31,7 +31,8 @@ pub struct WorkerReady {
     pub jobs_to: Recipient<JobsAssigned>,
 }
 
-/// A connection ended; its unserved credits are void (its held jobs are not redone).
+/// A connection ended or its worker paused; its unserved credits are void (its held
+/// jobs are not redone).
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct WorkerLeft {

@@ -19,8 +19,10 @@ pub struct Counters {
     /// Shared with every connection's socket wrappers.
     pub bytes_in: Arc<AtomicU64>,
     pub bytes_out: Arc<AtomicU64>,
-    /// Connections that passed the handshake and have not ended.
+    /// Connections that passed the handshake, have not ended and are not paused.
     pub workers: AtomicU64,
+    /// Connections whose worker paused (its desk's owner is active) and has not resumed.
+    pub paused_workers: AtomicU64,
     pub dropped_late: AtomicU64,
     pub dropped_duplicate: AtomicU64,
     pub dropped_unknown: AtomicU64,
@@ -107,7 +109,12 @@ pub struct FrameStats {
     pub dropped_late: u64,
     pub dropped_duplicate: u64,
     pub dropped_unknown: u64,
+    /// Live workers: connected and taking jobs (paused ones are not counted).
     pub workers: u64,
+    /// Connected workers that paused because their desk's owner is active.
+    pub paused_workers: u64,
+    /// Those workers, each with its reason.
+    pub paused: Vec<crate::workers::PausedWorker>,
     pub bytes_in: u64,
     pub bytes_out: u64,
     /// Frames shown so far in this run, this one included.

@@ -1,6 +1,6 @@
 //! The table of connected workers the window's status panel lists: name, cores, jobs per
-//! second, last seen. Connection actors write their own row (join, each accepted result,
-//! end); readers get a snapshot. Rows exist only for live connections, so the table is
+//! second, last seen, and whether (and why) a worker is paused. Connection actors write
+//! their own row (join, each accepted result, pause, resume, end); readers get a snapshot. Rows exist only for live connections, so the table is
 //! bounded by the connection cap.
 
 use std::collections::BTreeMap;
@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::frame_table::ConnId;
+use crate::protocol::PauseReason;
 
 /// Window over which a worker's job rate is measured.
 pub const RATE_WINDOW: Duration = Duration::from_secs(2);
@@ -26,6 +27,18 @@ pub struct WorkerInfo {
     pub jobs: u64,
     /// Time since its last message.
     pub last_seen: Duration,
+    /// Why it is paused (its desk's owner is active); `None` while it takes jobs.
+    pub paused: Option<PauseReason>,
+}
+
+/// A paused worker as the per-frame statistics name it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PausedWorker {
+    pub name: String,
+    /// [`PauseReason::kind`].
+    pub kind: &'static str,
+    /// The reason, for a human.
+    pub reason: String,
 }
 
 #[derive(Debug)]
@@ -39,6 +52,7 @@ struct Row {
     /// Rate over the last complete window.
     rate: f64,
     last_seen: Instant,
+    paused: Option<PauseReason>,
 }
 
 /// Live workers by connection.
@@ -59,6 +73,7 @@ impl WorkerTable {
             window_start: now,
             rate: 0.0,
             last_seen: now,
+            paused: None,
         };
         self.lock().insert(id, row);
     }
@@ -76,6 +91,35 @@ impl WorkerTable {
                 row.window_start = now;
             }
         }
+    }
+
+    /// The worker paused (or its reason changed).
+    pub fn paused(&self, id: ConnId, reason: PauseReason) {
+        if let Some(row) = self.lock().get_mut(&id) {
+            row.paused = Some(reason);
+        }
+    }
+
+    /// The worker takes jobs again.
+    pub fn resumed(&self, id: ConnId) {
+        if let Some(row) = self.lock().get_mut(&id) {
+            row.paused = None;
+        }
+    }
+
+    /// The paused workers, by connection id.
+    pub fn paused_list(&self) -> Vec<PausedWorker> {
+        self.lock()
+            .values()
+            .filter_map(|r| {
+                let reason = r.paused.as_ref()?;
+                Some(PausedWorker {
+                    name: r.name.clone(),
+                    kind: reason.kind(),
+                    reason: reason.to_string(),
+                })
+            })
+            .collect()
     }
 
     /// The connection ended.
@@ -98,6 +142,7 @@ impl WorkerTable {
                     jobs_per_second: if silent { 0.0 } else { r.rate },
                     jobs: r.jobs,
                     last_seen: now - r.last_seen,
+                    paused: r.paused.clone(),
                 }
             })
             .collect()
@@ -124,6 +169,25 @@ mod tests {
         assert_eq!((list[1].name.as_str(), list[1].cores, list[1].jobs), ("a", 4, 2));
         t.left(3);
         assert_eq!(t.list().len(), 1);
+    }
+
+    #[test]
+    fn a_paused_worker_stays_listed_with_its_reason_until_it_resumes() {
+        let t = WorkerTable::default();
+        t.joined(1, "desk", 2);
+        t.joined(2, "lab", 2);
+        t.paused(1, PauseReason::OwnerInput { seconds_ago: 3.0 });
+        let list = t.list();
+        assert_eq!(list.len(), 2, "paused workers are listed");
+        assert_eq!(list[0].paused, Some(PauseReason::OwnerInput { seconds_ago: 3.0 }));
+        assert_eq!(list[1].paused, None);
+        let paused = t.paused_list();
+        assert_eq!(paused.len(), 1);
+        assert_eq!((paused[0].name.as_str(), paused[0].kind), ("desk", "owner_input"));
+        assert!(paused[0].reason.contains("keyboard or mouse"), "{}", paused[0].reason);
+        t.resumed(1);
+        assert!(t.paused_list().is_empty());
+        assert_eq!(t.list()[0].paused, None);
     }
 
     #[test]

@@ -151,6 +151,13 @@ fn worker_msg() -> impl Strategy<Value = WorkerMsg> {
                 }
             )),
         Just(WorkerMsg::Heartbeat),
+        (0f32..100.0, 0f32..1e4).prop_map(|(percent, window_s)| WorkerMsg::Paused {
+            reason: PauseReason::OwnerCpu { percent, window_s }
+        }),
+        (0f32..1e6).prop_map(|seconds_ago| WorkerMsg::Paused {
+            reason: PauseReason::OwnerInput { seconds_ago }
+        }),
+        Just(WorkerMsg::Resumed),
     ]
 }
 

@@ -149,6 +149,25 @@ impl Peer {
         }
     }
 
+    /// The next message other than a heartbeat within `wait`, `None` if none came.
+    pub fn recv_within(&mut self, wait: Duration) -> Option<MasterMsg> {
+        let deadline = std::time::Instant::now() + wait;
+        let msg = loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
+                break None;
+            }
+            self.stream.set_read_timeout(Some(left)).expect("timeout");
+            match self.recv() {
+                Ok(MasterMsg::Heartbeat) => continue,
+                Ok(m) => break Some(m),
+                Err(_) => break None,
+            }
+        };
+        self.stream.set_read_timeout(Some(Duration::from_secs(30))).expect("timeout");
+        msg
+    }
+
     /// Skips heartbeats.
     pub fn recv_non_heartbeat(&mut self) -> Result<MasterMsg, String> {
         loop {

@@ -371,3 +371,88 @@ fn a_worker_joining_mid_run_gets_work_and_the_state_first() {
     drop(m);
     let _ = busy.join();
 }
+
+/// Polls `what` until it holds (the master's counters change on its own thread).
+fn eventually(what: &str, f: impl Fn() -> bool) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while !f() {
+        assert!(std::time::Instant::now() < deadline, "timed out waiting for {what}");
+        thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn a_paused_worker_is_counted_apart_gets_no_jobs_and_comes_back_when_it_resumes() {
+    let (m, rx) = master();
+    let c = m.counters();
+    // Another worker keeps frames coming, so that their statistics can be read.
+    let stop = Arc::new(AtomicBool::new(false));
+    let other = null_worker(m.local_addr(), stop.clone());
+    let mut p = Peer::connect(m.local_addr());
+    p.handshake(None).expect("welcome");
+    p.send(&WorkerMsg::Ready { credits: 2 });
+    let (held_frame, held_set, _, _) = p.next_job().expect("a job before pausing");
+    eventually("two live workers", || Counters::get(&c.workers) == 2);
+
+    let reason = PauseReason::OwnerCpu { percent: 87.0, window_s: 10.0 };
+    p.send(&WorkerMsg::Paused { reason: reason.clone() });
+    eventually("the worker counted as paused", || {
+        Counters::get(&c.paused_workers) == 1 && Counters::get(&c.workers) == 1
+    });
+    let listed = m.workers();
+    assert_eq!(listed.len(), 2, "a paused worker stays listed");
+    assert_eq!(listed.iter().filter(|w| w.paused == Some(reason.clone())).count(), 1);
+    // The frames' statistics name it and say why.
+    let paused_in_stats = loop {
+        let frame = rx.recv_timeout(Duration::from_secs(20)).expect("frames go on");
+        if frame.stats.paused_workers == 1 {
+            break frame.stats;
+        }
+    };
+    assert_eq!(paused_in_stats.workers, 1, "a paused worker is not a live one");
+    assert_eq!(paused_in_stats.paused[0].kind, "owner_cpu");
+    assert!(paused_in_stats.paused[0].reason.contains("87 %"), "{:?}", paused_in_stats.paused);
+
+    // Jobs already on their way when it paused may still arrive; after that, none.
+    for _ in 0..8 {
+        if p.recv_within(Duration::from_millis(300)).is_none() {
+            break;
+        }
+    }
+    let leaked = p.recv_within(Duration::from_millis(1500));
+    assert!(leaked.is_none(), "a paused worker was sent {leaked:?}");
+
+    p.send(&WorkerMsg::Resumed);
+    p.send(&WorkerMsg::Ready { credits: 1 });
+    let (frame, set, _, _) = p.next_job().expect("a job after resuming");
+    assert_ne!((frame, set), (held_frame, held_set), "a job held at the pause was redone");
+    eventually("the worker live again", || {
+        Counters::get(&c.paused_workers) == 0 && Counters::get(&c.workers) == 2
+    });
+    assert!(m.workers().iter().all(|w| w.paused.is_none()));
+    stop.store(true, Ordering::Relaxed);
+    drop(p);
+    let _ = other.join();
+    assert_eq!(Counters::get(&c.jobs_handed_twice), 0);
+}
+
+#[test]
+fn credits_or_results_while_paused_and_resuming_unpaused_end_the_connection() {
+    let (m, _rx) = master();
+    let mut p = Peer::connect(m.local_addr());
+    p.handshake(None).expect("welcome");
+    p.send(&WorkerMsg::Paused { reason: PauseReason::OwnerInput { seconds_ago: 2.0 } });
+    p.send(&WorkerMsg::Ready { credits: 1 });
+    let reason = p.expect_rejected();
+    assert!(reason.contains("Ready while the worker is paused"), "{reason}");
+
+    let mut q = Peer::connect(m.local_addr());
+    q.handshake(None).expect("welcome");
+    q.send(&WorkerMsg::Resumed);
+    let reason = q.expect_rejected();
+    assert!(reason.contains("Resumed while the worker is not paused"), "{reason}");
+    eventually("no worker counted", || {
+        Counters::get(&m.counters().workers) == 0
+            && Counters::get(&m.counters().paused_workers) == 0
+    });
+}

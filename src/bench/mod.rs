@@ -5,7 +5,11 @@
 //! - [`master`]: frames per second and CPU per job of the master with null-render workers.
 //! - [`lan`]: frames per second and bytes per frame across namespace hosts behind
 //!   rate-limited links, beside the bandwidth bound.
+//! - [`owner_impact`]: a desk owner's CPU-bound program alone and beside a rendering
+//!   worker ([`busy_loop`] is that program).
 
+pub mod busy_loop;
 pub mod lan;
 pub mod master;
+pub mod owner_impact;
 pub mod trace;

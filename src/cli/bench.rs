@@ -33,6 +33,11 @@ pub enum What {
     Lan(super::bench_lan::LanArgs),
     /// Milliseconds per 640×480 frame of the full reconstruction pipeline, CPU and GPU.
     Reconstruct(ReconstructArgs),
+    /// A desk owner's CPU-bound program beside a rendering worker, against alone.
+    OwnerImpact(super::bench_owner::OwnerImpactArgs),
+    /// The owner's program of `owner-impact`: spin threads and count iterations.
+    #[command(hide = true)]
+    BusyLoop(super::bench_owner::BusyLoopArgs),
 }
 
 /// Arguments of `gridlight bench reconstruct`.
@@ -101,6 +106,8 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         }
         What::Master(args) => super::bench_master::run(args, global),
         What::Lan(args) => super::bench_lan::run(args, global),
+        What::OwnerImpact(args) => super::bench_owner::run_owner_impact(args, global),
+        What::BusyLoop(args) => super::bench_owner::run_busy_loop(args),
     }
 }
 

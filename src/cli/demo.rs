@@ -20,7 +20,7 @@ use super::master::{DisplayArgs, PacingArgs, DEFAULT_SETS};
 use super::GlobalArgs;
 use crate::children::Children;
 use crate::headless::HeadlessOptions;
-use crate::master_cmd::{self, MasterOptions};
+use crate::master_cmd::{self, AnnounceOptions, MasterOptions};
 
 /// The scene shown when none is named.
 pub const DEFAULT_SCENE: &str = "scenes/cornell-box.toml";
@@ -56,6 +56,10 @@ pub struct Args {
     pub pacing: PacingArgs,
     #[command(flatten)]
     pub display: DisplayArgs,
+    /// Do not announce the demo's master (on loopback: other workers of this machine could
+    /// join it, with the secret in `OUT/.demo-secret`).
+    #[arg(long)]
+    pub no_announce: bool,
 }
 
 /// Runs `gridlight demo`.
@@ -90,6 +94,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         display: args.display.clone(),
         pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
         secret: Some(secret_hex),
+        announce: AnnounceOptions { enabled: !args.no_announce, to: None, name: None },
         script: args.script.clone(),
         frames: if windowed { args.frames } else { Some(args.frames.unwrap_or(DEFAULT_FRAMES)) },
         headless: HeadlessOptions {

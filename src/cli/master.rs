@@ -9,7 +9,7 @@ use gridlight_actors::protocol::{Partition, SetsConfig};
 
 use super::GlobalArgs;
 use crate::headless::HeadlessOptions;
-use crate::master_cmd::{self, MasterOptions, DEFAULT_LISTEN};
+use crate::master_cmd::{self, AnnounceOptions, MasterOptions, DEFAULT_LISTEN};
 use crate::reconstruct::{Backend, ReconstructParams};
 use crate::scene::PacingOverrides;
 use crate::view::View;
@@ -114,6 +114,34 @@ impl DisplayArgs {
     }
 }
 
+/// Whether and how a master announces itself on the LAN (`gridlight worker` without
+/// `--master` joins a master it hears).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct AnnounceArgs {
+    /// Do not announce this master on the LAN (workers must then name it with --master).
+    #[arg(long)]
+    pub no_announce: bool,
+    /// Where announcements go, `ADDR:PORT` [default: 255.255.255.255:7841, or
+    /// 127.255.255.255:7841 for a master listening on loopback]; e.g. a subnet's broadcast
+    /// address on a machine with several networks.
+    #[arg(long, value_name = "ADDR:PORT", conflicts_with = "no_announce")]
+    pub announce_to: Option<SocketAddr>,
+    /// Name announced to workers (they choose with --master-name) [default: host name].
+    #[arg(long, value_name = "NAME")]
+    pub name: Option<String>,
+}
+
+impl AnnounceArgs {
+    /// What the master is told.
+    pub fn options(&self) -> AnnounceOptions {
+        AnnounceOptions {
+            enabled: !self.no_announce,
+            to: self.announce_to,
+            name: self.name.clone(),
+        }
+    }
+}
+
 /// Arguments of `gridlight master`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
@@ -156,6 +184,8 @@ pub struct Args {
     /// Shared secret workers must prove (HMAC over a nonce; the secret never travels).
     #[arg(long, value_name = "FILE")]
     pub secret_file: Option<PathBuf>,
+    #[command(flatten)]
+    pub announce: AnnounceArgs,
     /// Also write each frame's own unfiltered results as EXR (process tests).
     #[arg(long, hide = true)]
     pub dump_current: bool,
@@ -180,6 +210,7 @@ impl Args {
             display: self.display.clone(),
             pipeline: self.pipeline,
             secret,
+            announce: self.announce.options(),
             script: self.script.clone(),
             frames: self.frames,
             headless: HeadlessOptions {

@@ -12,12 +12,14 @@ use clap::{Parser, Subcommand};
 pub mod bench;
 pub mod bench_lan;
 pub mod bench_master;
+pub mod bench_owner;
 pub mod demo;
 pub mod eval;
 pub mod master;
 pub mod render;
 pub mod soak;
 pub mod worker;
+pub mod worker_file;
 
 /// Interactive path tracing on a desktop grid.
 #[derive(Debug, Parser)]

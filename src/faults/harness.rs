@@ -265,6 +265,9 @@ impl Harness {
             .arg(addr.to_string())
             .args(["--threads", "1", "--null-render", "--null-render-delay-ms"])
             .arg(self.config.render_delay_ms.to_string())
+            // These workers stand for other machines: at the default idle priority their
+            // simulated renders would wait behind every process of this (loaded) host.
+            .args(["--priority", "normal"])
             .arg("--name")
             .arg(format!("fault-{}", self.spawned))
             .arg("--cache-dir")

@@ -161,7 +161,10 @@ fn status_section(ui: &mut egui::Ui, s: &StatusView) {
             for w in &s.workers {
                 ui.label(&w.name);
                 ui.label(w.cores.to_string());
-                ui.label(format!("{:.1}", w.jobs_per_second));
+                match &w.paused {
+                    Some(why) => ui.label(format!("paused: {why}")),
+                    None => ui.label(format!("{:.1}", w.jobs_per_second)),
+                };
                 ui.label(format!("{:.1} s ago", w.last_seen_s));
                 ui.end_row();
             }

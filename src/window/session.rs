@@ -251,6 +251,7 @@ impl Session for MasterSession {
                 cores: w.cores,
                 jobs_per_second: w.jobs_per_second as f32,
                 last_seen_s: w.last_seen.as_secs_f32(),
+                paused: w.paused.map(|r| r.to_string()),
             })
             .collect();
         if let Some(stats) = h.stats() {

@@ -13,6 +13,8 @@ pub struct WorkerRow {
     pub jobs_per_second: f32,
     /// Seconds since the master last heard from it.
     pub last_seen_s: f32,
+    /// Why it paused (its desk's owner is active); `None` while it takes jobs.
+    pub paused: Option<String>,
 }
 
 /// What the status panel shows about the last shown frame and the grid.

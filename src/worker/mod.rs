@@ -7,15 +7,25 @@
 //! A connection that ends for any reason but a fatal one (wrong version or secret)
 //! reconnects with exponential back-off and jitter; Ctrl-C ends them all cleanly.
 //!
+//! Render threads run at the lowest CPU priority by default ([`priority`]); with
+//! `--when-idle` the worker pauses while its desk's owner is active ([`idle`]). Without
+//! `--master` it finds a master that announces itself on the LAN ([`discover`]).
+//!
 //! - [`cache`]: the hash-keyed on-disk asset cache.
 //! - [`backoff`]: reconnect delays.
 //! - [`session`]: one connection's protocol phases.
 //! - [`render`]: the render thread (path tracer or null renderer).
 //! - [`shared`]: what the connections of a process share.
 //! - [`resolver`]: loading a scene's assets from the cache.
+//! - [`priority`]: the render threads' CPU priority.
+//! - [`idle`]: the owner monitor and the pause/resume decision.
+//! - [`discover`]: listening for a master's announcements.
 
 pub mod backoff;
 pub mod cache;
+pub mod discover;
+pub mod idle;
+pub mod priority;
 pub mod render;
 pub mod resolver;
 pub mod session;
@@ -31,9 +41,12 @@ use tokio_util::sync::CancellationToken;
 use tracing::{error, info, warn};
 
 use backoff::Backoff;
+use idle::{Activity, IdlePolicy};
+pub use priority::Priority;
 pub use render::RendererKind;
 use session::{SessionConfig, SessionEnd, SessionProgress};
 use shared::Shared;
+use tokio::sync::watch;
 
 /// Jobs a worker holds at once when not told otherwise (DESIGN.md decision 7).
 pub const DEFAULT_PIPELINE: u32 = 2;
@@ -61,6 +74,21 @@ pub struct WorkerConfig {
     /// Jobs held per connection.
     pub pipeline: u32,
     pub renderer: RendererKind,
+    /// CPU priority of the render threads.
+    pub priority: Priority,
+    /// Whether the worker gives way to its desk's owner.
+    pub when_idle: WhenIdle,
+}
+
+/// Whether, and how, a worker pauses while its desk's owner is active.
+#[derive(Clone, Debug)]
+pub enum WhenIdle {
+    /// Always take jobs.
+    Off,
+    /// Watch this machine (`--when-idle`).
+    Monitor(IdlePolicy),
+    /// Follow decisions made elsewhere (tests, embedders).
+    Follow(watch::Receiver<Activity>),
 }
 
 /// Why a worker (or one of its connections) stopped.
@@ -106,14 +134,18 @@ pub fn idle_cores() -> usize {
     cores.saturating_sub(load.round() as usize).max(1)
 }
 
-/// A default worker name: the host name and the process id.
-pub fn default_name() -> String {
-    let host = std::fs::read_to_string("/etc/hostname")
+/// This machine's name (`/etc/hostname`, else `$HOSTNAME`), if it has one.
+pub fn host_name() -> Option<String> {
+    std::fs::read_to_string("/etc/hostname")
         .ok()
         .map(|s| s.trim().to_string())
         .filter(|s| !s.is_empty())
         .or_else(|| std::env::var("HOSTNAME").ok())
-        .unwrap_or_else(|| "worker".into());
+}
+
+/// A default worker name: the host name and the process id.
+pub fn default_name() -> String {
+    let host = host_name().unwrap_or_else(|| "worker".into());
     format!("{host}:{}", std::process::id())
 }
 
@@ -141,7 +173,16 @@ pub fn run(config: WorkerConfig) -> Result<(), WorkerError> {
 /// Runs the worker's connections until `cancel` fires (`Ok`) or one fails fatally.
 pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Result<(), WorkerError> {
     let shared = Arc::new(Shared::new(cache::AssetCache::open(&config.cache_dir)?));
-    info!(master = %config.master, threads = config.threads, cache = %config.cache_dir.display(), "worker starting");
+    info!(master = %config.master, threads = config.threads, cache = %config.cache_dir.display(),
+        priority = ?config.priority, "worker starting");
+    let activity = match config.when_idle.clone() {
+        WhenIdle::Off => watch::channel(Activity::Working).1,
+        WhenIdle::Follow(rx) => rx,
+        WhenIdle::Monitor(policy) => {
+            idle::spawn_monitor(policy, Box::new(idle::input::FirstKnown::detect()), cancel.clone())
+                .map_err(WorkerError::Runtime)?
+        }
+    };
     let mut tasks = tokio::task::JoinSet::new();
     for i in 0..config.threads.max(1) {
         let session = SessionConfig {
@@ -149,12 +190,14 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
             secret: config.secret.clone().map(Arc::new),
             pipeline: config.pipeline,
             renderer: config.renderer,
+            priority: config.priority,
         };
         tasks.spawn(connection_loop(
             config.master.clone(),
             session,
             Arc::clone(&shared),
             cancel.clone(),
+            activity.clone(),
         ));
     }
     let mut outcome = Ok(());
@@ -179,6 +222,7 @@ async fn connection_loop(
     config: SessionConfig,
     shared: Arc<Shared>,
     cancel: CancellationToken,
+    mut activity: watch::Receiver<Activity>,
 ) -> Result<(), WorkerError> {
     let mut backoff = Backoff::default();
     let mut rng = rand::rngs::StdRng::from_entropy();
@@ -186,7 +230,8 @@ async fn connection_loop(
         let mut progress = SessionProgress::default();
         let outcome = match connect(&master).await {
             Ok(transport) => {
-                session::run(transport, &config, &shared, &cancel, &mut progress).await
+                session::run(transport, &config, &shared, &cancel, &mut activity, &mut progress)
+                    .await
             }
             Err(err) => Err(err),
         };

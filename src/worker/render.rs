@@ -8,10 +8,16 @@
 //! renders them, packs the demodulated radiance as RGB9E5 and tags the result with the
 //! connection's key (`gridlight_actors::integrity`).
 //!
+//! The thread lowers its own priority first (`priority`: `SCHED_IDLE` by default), so
+//! that the desk's owner never waits for it. When the worker pauses, jobs still queued
+//! are discarded ([`RenderThread::discard_queued`]); the job being rendered finishes and
+//! its result is dropped by the session.
+//!
 //! The null renderer (`--null-render`, for `gridlight bench master`) answers every job
 //! with constant radiance at no cost, so a benchmark measures the master alone; without
 //! a simulated delay it answers on the connection's task, with no thread at all.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc as std_mpsc;
 use std::sync::Arc;
 use std::time::Instant;
@@ -22,9 +28,10 @@ use gridlight_actors::packing::encode_rgb9e5;
 use gridlight_actors::protocol::{FrameNo, JobResult, PackedRadiance, SetNo, SetsConfig};
 use gridlight_actors::state::SceneState;
 use tokio::sync::mpsc;
-use tracing::{debug, error};
+use tracing::{debug, error, warn};
 
 use super::cache::CacheView;
+use super::priority::{self, Priority};
 use super::shared::Shared;
 use super::WorkerError;
 use crate::render::{render_pixels, PixelSample, RenderScene};
@@ -66,7 +73,8 @@ pub struct RenderThread {
 }
 
 enum Inner {
-    Thread(std_mpsc::Sender<RenderJob>),
+    /// Jobs go with the epoch they were queued in; the thread skips stale ones.
+    Thread { jobs: std_mpsc::Sender<(u64, RenderJob)>, epoch: Arc<AtomicU64> },
     Inline {
         renderer: Box<Renderer>,
         results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
@@ -75,9 +83,11 @@ enum Inner {
 
 impl RenderThread {
     /// Starts the renderer; results (or the error that ended it) go to `results`.
+    #[allow(clippy::too_many_arguments)]
     pub fn spawn(
         name: &str,
         kind: RendererKind,
+        priority: Priority,
         view: Option<CacheView>,
         shared: Arc<Shared>,
         sets: SetsConfig,
@@ -89,26 +99,42 @@ impl RenderThread {
         if kind == (RendererKind::Null { delay_ms: 0 }) {
             return Ok(Self { inner: Inner::Inline { renderer: Box::new(renderer), results } });
         }
-        let (jobs, rx) = std_mpsc::channel::<RenderJob>();
+        let (jobs, rx) = std_mpsc::channel::<(u64, RenderJob)>();
+        let epoch = Arc::new(AtomicU64::new(0));
+        let current = Arc::clone(&epoch);
         std::thread::Builder::new()
             .name(format!("render {name}"))
             .spawn(move || {
-                while let Ok(job) = rx.recv() {
+                match priority::apply_to_current_thread(priority) {
+                    Ok(applied) => debug!(%applied, "render thread priority"),
+                    Err(e) => warn!(cause = %e, "render thread runs at normal priority"),
+                }
+                while let Ok((queued_in, job)) = rx.recv() {
+                    if queued_in != current.load(Ordering::Acquire) {
+                        continue; // held when the worker paused: lost, never rendered
+                    }
                     if !renderer.answer(&job, &results) {
                         break;
                     }
                 }
             })
             .map_err(|e| WorkerError::Render(format!("cannot start a render thread: {e}")))?;
-        Ok(Self { inner: Inner::Thread(jobs) })
+        Ok(Self { inner: Inner::Thread { jobs, epoch } })
+    }
+
+    /// Drops every job queued and not yet started (the worker paused).
+    pub fn discard_queued(&self) {
+        if let Inner::Thread { epoch, .. } = &self.inner {
+            epoch.fetch_add(1, Ordering::AcqRel);
+        }
     }
 
     /// Queues a job behind the ones already held (or answers it, for the inline renderer).
     pub fn submit(&mut self, job: RenderJob) -> Result<(), WorkerError> {
         match &mut self.inner {
-            Inner::Thread(jobs) => {
-                jobs.send(job).map_err(|_| WorkerError::Render("the render thread ended".into()))
-            }
+            Inner::Thread { jobs, epoch } => jobs
+                .send((epoch.load(Ordering::Acquire), job))
+                .map_err(|_| WorkerError::Render("the render thread ended".into())),
             Inner::Inline { renderer, results } => {
                 renderer.answer(&job, results);
                 Ok(())

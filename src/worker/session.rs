@@ -9,23 +9,32 @@
 //! the session has been quiet for `HEARTBEAT_INTERVAL`, so long renders and downloads
 //! never look like a dead worker; a master silent for `PEER_TIMEOUT` is gone.
 //!
+//! While the worker's owner monitor says *paused* (`--when-idle`), the session tells the
+//! master `Paused` with the reason, forgets the jobs it holds (queued ones are never
+//! rendered, a result still being rendered is dropped: the master counts them lost and
+//! never recomputes them), ignores jobs still on their way and sends no credit; when it
+//! says *working* again, `Resumed` and fresh credits (the protocol's *Pausing* section).
+//!
 //! The session is generic over its transport (a stream of decoded `MasterMsg`s and a sink
 //! of `WorkerMsg`s) so that the framing stays the codec's business.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::sync::Arc;
 use std::time::Duration;
 
 use futures::{Sink, SinkExt, Stream, StreamExt};
 use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::protocol::{
-    AssetEntry, MasterMsg, WorkerMsg, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION,
+    AssetEntry, FrameNo, MasterMsg, SetNo, WorkerMsg, HEARTBEAT_INTERVAL, PEER_TIMEOUT,
+    PROTOCOL_VERSION,
 };
 use gridlight_actors::state::{SceneState, StateVersion};
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 use tracing::{debug, info, warn};
 
+use super::idle::Activity;
+use super::priority::Priority;
 use super::render::{RenderJob, RenderThread, RendererKind};
 use super::shared::Shared;
 use super::WorkerError;
@@ -45,6 +54,8 @@ pub struct SessionConfig {
     pub pipeline: u32,
     /// Real path tracing or the null renderer.
     pub renderer: RendererKind,
+    /// Priority of the render thread.
+    pub priority: Priority,
 }
 
 /// How a session ended without an error.
@@ -71,6 +82,7 @@ pub async fn run<T, E>(
     config: &SessionConfig,
     shared: &Arc<Shared>,
     cancel: &CancellationToken,
+    activity: &mut watch::Receiver<Activity>,
     progress: &mut SessionProgress,
 ) -> Result<SessionEnd, WorkerError>
 where
@@ -81,7 +93,7 @@ where
     let (out_tx, out_rx) = mpsc::channel::<WorkerMsg>(64);
     let writer = tokio::spawn(write_loop(sink, out_rx));
     let result = tokio::select! {
-        r = drive(&mut stream, &out_tx, config, shared, progress) => r,
+        r = drive(&mut stream, &out_tx, config, shared, activity, progress) => r,
         () = cancel.cancelled() => Ok(SessionEnd::Shutdown),
     };
     drop(out_tx);
@@ -120,6 +132,7 @@ async fn drive<S, E>(
     out: &mpsc::Sender<WorkerMsg>,
     config: &SessionConfig,
     shared: &Arc<Shared>,
+    activity: &mut watch::Receiver<Activity>,
     progress: &mut SessionProgress,
 ) -> Result<SessionEnd, WorkerError>
 where
@@ -156,6 +169,7 @@ where
     let mut render = RenderThread::spawn(
         &config.name,
         config.renderer,
+        config.priority,
         Some(view),
         Arc::clone(shared),
         sets,
@@ -163,10 +177,29 @@ where
         results_tx,
     )?;
     let mut states: BTreeMap<StateVersion, Arc<SceneState>> = BTreeMap::new();
-    conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?;
+    // Jobs given to the render thread since the last pause; a result of any other is
+    // one the master already counts as lost.
+    let mut live: HashSet<(FrameNo, SetNo)> = HashSet::new();
+    let mut paused = false;
+    let mut follow = true;
+    let now = activity.borrow_and_update().clone();
+    match now {
+        Activity::Working => {
+            conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?
+        }
+        now => follow_activity(&mut conn, now, &mut paused, &mut live, &render, config).await?,
+    }
 
     loop {
         tokio::select! {
+            changed = activity.changed(), if follow => match changed {
+                Ok(()) => {
+                    let now = activity.borrow_and_update().clone();
+                    follow_activity(&mut conn, now, &mut paused, &mut live, &render, config).await?;
+                }
+                // The monitor is gone: the last decision stands.
+                Err(_) => follow = false,
+            },
             msg = conn.recv() => match msg? {
                 None => return Ok(SessionEnd::Closed),
                 Some(MasterMsg::State(state)) => {
@@ -182,6 +215,11 @@ where
                             "job (frame {frame}, set {set}) names state version {state_version}, which was never sent"
                         )));
                     };
+                    if paused {
+                        debug!(frame, set, "job dropped: paused");
+                        continue;
+                    }
+                    live.insert((frame, set));
                     render.submit(RenderJob { frame, set, state: Arc::clone(state) })?;
                 }
                 Some(MasterMsg::Heartbeat) => {}
@@ -193,6 +231,10 @@ where
             result = results_rx.recv() => match result {
                 Some(Ok(result)) => {
                     let (frame, set) = (result.frame, result.set);
+                    if !live.remove(&(frame, set)) {
+                        debug!(frame, set, "result dropped: its job was held when the worker paused");
+                        continue;
+                    }
                     conn.send(WorkerMsg::Result(result)).await?;
                     debug!(frame, set, "result sent");
                     conn.send(WorkerMsg::Ready { credits: 1 }).await?;
@@ -202,6 +244,39 @@ where
                 None => return Err(WorkerError::Protocol("render thread ended".into())),
             },
         }
+    }
+}
+
+/// Tells the master about a change of the owner monitor's decision.
+async fn follow_activity<S, E>(
+    conn: &mut Conn<'_, S>,
+    now: Activity,
+    paused: &mut bool,
+    live: &mut HashSet<(FrameNo, SetNo)>,
+    render: &RenderThread,
+    config: &SessionConfig,
+) -> Result<(), WorkerError>
+where
+    S: Stream<Item = Result<MasterMsg, E>> + Unpin,
+    E: std::fmt::Display,
+{
+    match now {
+        Activity::Paused(reason) => {
+            if !*paused {
+                info!(worker = %config.name, jobs_lost = live.len(), %reason, "paused");
+            }
+            *paused = true;
+            live.clear();
+            render.discard_queued();
+            conn.send(WorkerMsg::Paused { reason }).await
+        }
+        Activity::Working if *paused => {
+            info!(worker = %config.name, "resumed");
+            *paused = false;
+            conn.send(WorkerMsg::Resumed).await?;
+            conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await
+        }
+        Activity::Working => Ok(()),
     }
 }
 
