@@ -59,7 +59,7 @@ fn slurm_batch_script_starts_a_valid_worker() {
     assert_eq!(commands.len(), 1, "{file}: one gridlight command expected: {commands:?}");
     let (line, cmd) = &commands[0];
     let args = worker_args(check_cli(file, *line, cmd));
-    assert_eq!(args.master, "render-host:7840", "the master is the script's argument");
+    assert_eq!(args.master.as_deref(), Some("render-host:7840"), "the script's argument");
     assert_eq!(args.threads, Some(4), "one thread per CPU Slurm gives the task");
     assert_eq!(args.name.as_deref(), Some("slurm-41-3"));
     // The #SBATCH directives come before the first command, or sbatch ignores them.
@@ -236,7 +236,7 @@ fn htcondor_submit_description_is_valid() {
         words::condor_arguments(&arguments).unwrap_or_else(|e| panic!("{file}:{line}: {e}")),
     );
     let args = worker_args(check_cli(file, *line, &cmd));
-    assert_eq!(args.master, macros["master"], "the master's address comes from the `master` macro");
+    assert_eq!(args.master.as_ref(), Some(&macros["master"]), "the `master` macro");
     // The secret file the worker reads is one the job transfers.
     let secret = args.secret_file.expect("workers prove the secret");
     assert!(get("transfer_input_files").split(',').any(|f| Path::new(f.trim()) == secret));
@@ -351,7 +351,7 @@ fn kubernetes_manifests_are_consistent_and_their_command_lines_valid() {
                     let name = service["metadata"]["name"].as_str().unwrap();
                     assert_eq!(
                         args.master,
-                        format!("{name}:{port}"),
+                        Some(format!("{name}:{port}")),
                         "{file}: workers reach the Service"
                     );
                     check_secret_mount(pod, c, &args.secret_file.expect("a secret"), secret);
@@ -395,7 +395,8 @@ fn systemd_unit_runs_an_idle_priority_worker() {
     let (line, _, exec) = entries.iter().find(|(_, k, _)| k == "ExecStart").expect("ExecStart");
     let cmd = words::systemd_exec(exec, &vars).unwrap_or_else(|e| panic!("{file}:{line}: {e}"));
     let args = worker_args(check_cli(file, *line, &cmd));
-    assert_eq!(args.master, vars["GRIDLIGHT_MASTER"]);
+    assert_eq!(args.master.as_ref(), Some(&vars["GRIDLIGHT_MASTER"]));
+    assert_eq!(args.when_idle, Some(true), "{file}: office desktops run --when-idle");
     verify_unit(file, &text, &cmd[0]);
 }
 

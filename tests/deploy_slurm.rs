@@ -147,6 +147,8 @@ fn slurm_job_array_workers_join_render_and_leave() {
         .arg("master")
         .arg(small_scene(dir))
         .args(["--headless", "--listen", "127.0.0.1:0", "--sets", "16", "--fps", "4"])
+        // The workers are given the address; nothing goes onto the machine's network.
+        .arg("--no-announce")
         .args(["--reconstruct", "cpu", "--stats"])
         .arg(&stats_file)
         .arg("--secret-file")

@@ -203,6 +203,9 @@ fn start_workers(
         .args(["--null-render-delay-ms", &opts.render_ms.to_string()])
         .args(["--threads", &opts.threads.to_string()])
         .args(["--pipeline", &opts.pipeline.to_string()])
+        // They stand for other machines: at idle priority this machine's load would starve
+        // their modelled renders.
+        .args(["--priority", "normal"])
         .arg("--cache-dir")
         .arg(cache.join(&host.name))
         .env("RUST_LOG", "warn")
