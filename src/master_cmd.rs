@@ -4,13 +4,14 @@
 //! into the store workers fetch from, and resolves pacing and reconstruction (command
 //! line over the scene file over the paper); [`run`] starts the actor system with the
 //! headless sink, prints the address it listens on, plays the interaction script and
-//! waits until the frame limit or Ctrl-C, then stops cleanly and returns the report;
-//! [`run_window`] does the same with the window as the sink, until the window closes.
+//! waits until the frame limit or Ctrl-C/SIGTERM, then stops cleanly and returns the
+//! report; [`run_window`] does the same with the window as the sink, until the window
+//! closes or Ctrl-C/SIGTERM arrives.
 
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -25,7 +26,7 @@ use crate::cli::master::DisplayArgs;
 use crate::compose::Composer;
 use crate::headless::{HeadlessOptions, HeadlessSink};
 use crate::reconstruct::ReconstructParams;
-use crate::scene::{AssetResolver, AssetSearchPath, PacingOverrides};
+use crate::scene::{AssetResolver, PacingOverrides, SceneSource};
 
 /// Address `gridlight master` listens on when `--listen` is not given.
 pub const DEFAULT_LISTEN: &str = "0.0.0.0:7840";
@@ -36,7 +37,7 @@ pub const LISTENING_PREFIX: &str = "gridlight master listening on ";
 /// Everything a master run needs.
 #[derive(Clone, Debug)]
 pub struct MasterOptions {
-    pub scene: PathBuf,
+    pub scene: SceneSource,
     /// `--assets` directories (searched before `GRIDLIGHT_ASSETS` and `scenes/assets/`).
     pub asset_dirs: Vec<PathBuf>,
     pub listen: SocketAddr,
@@ -68,16 +69,16 @@ impl Prepared {
     /// A composer for this run's frames.
     pub fn composer(&self, opts: &MasterOptions) -> anyhow::Result<Composer> {
         Composer::new(Arc::clone(&self.assets), &self.state, self.params, opts.display.reconstruct)
-            .with_context(|| format!("preparing reconstruction for {}", opts.scene.display()))
+            .with_context(|| format!("preparing reconstruction for {}", opts.scene))
     }
 }
 
 /// Loads the scene and its assets and resolves the settings.
 pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
-    let search = AssetSearchPath::from_env(&opts.asset_dirs, Some(&opts.scene));
-    let loaded = crate::scene::load(&opts.scene, &search)?;
+    let search = opts.scene.search_path(&opts.asset_dirs);
+    let loaded = crate::scene::load_source(&opts.scene, &search)?;
     let manifest = crate::scene::manifest(&loaded.state, &search)
-        .with_context(|| format!("hashing the assets of {}", opts.scene.display()))?;
+        .with_context(|| format!("hashing the assets of {}", opts.scene))?;
     let mut store = AssetStore::new();
     for entry in &manifest {
         let file = search.resolve(&entry.path)?;
@@ -117,10 +118,10 @@ pub fn run(
     if let Some(script) = script {
         handle.play_script(script);
     }
-    let interrupted = ctrl_c_flag()?;
-    while !handle.wait_finished(Duration::from_millis(200)) {
+    let interrupted = crate::signals::stop_flag().context("installing the Ctrl-C handler")?;
+    while !handle.wait_finished(Duration::from_millis(100)) {
         if interrupted.load(Ordering::SeqCst) {
-            info!("Ctrl-C: stopping the master");
+            info!("Ctrl-C or SIGTERM: stopping the master");
             break;
         }
     }
@@ -132,13 +133,14 @@ pub fn run(
 }
 
 /// Runs a master whose frames go to a window on this thread, until the window closes
-/// (or the frame limit); then `on_shutdown` runs (the demo stops its workers there).
+/// (or the frame limit, Ctrl-C or SIGTERM); then `on_shutdown` runs (the demo stops its
+/// workers there). Returns the master's report, as [`run`] does.
 pub fn run_window(
     opts: &MasterOptions,
     window: crate::window::WindowOptions,
     on_listening: impl FnOnce(SocketAddr) -> anyhow::Result<()> + 'static,
     on_shutdown: Option<Box<dyn FnOnce()>>,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<MasterReport> {
     let prepared = prepare(opts)?;
     let script = load_script(opts)?;
     let composer = prepared.composer(opts)?;
@@ -155,8 +157,12 @@ pub fn run_window(
         }),
         on_shutdown,
     };
-    crate::window::session::run_master_window(window, start)
-        .context("running the window (use --headless to run without one)")
+    let report = crate::window::session::run_master_window(window, start)
+        .context("running the window (use --headless to run without one)")?;
+    if let Some(err) = &report.error {
+        bail!("the master stopped on an error: {err}");
+    }
+    Ok(report)
 }
 
 fn load_script(
@@ -179,19 +185,4 @@ fn announce(addr: SocketAddr) {
     println!("{LISTENING_PREFIX}{addr}");
     let _ = std::io::stdout().flush();
     info!(%addr, "master started");
-}
-
-/// A flag set by Ctrl-C (a tokio signal listener on a small thread of its own).
-pub fn ctrl_c_flag() -> anyhow::Result<Arc<AtomicBool>> {
-    let flag = Arc::new(AtomicBool::new(false));
-    let set = Arc::clone(&flag);
-    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-    std::thread::Builder::new().name("ctrl-c".into()).spawn(move || {
-        runtime.block_on(async {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                set.store(true, Ordering::SeqCst);
-            }
-        })
-    })?;
-    Ok(flag)
 }

@@ -96,6 +96,8 @@ pub struct Display {
     report: Arc<Report>,
     restarts: RestartTracker,
     finished: bool,
+    /// When the display was made (the master's start), for `shown_at_ms`.
+    started: Instant,
 }
 
 /// Construction parameters of the display.
@@ -139,6 +141,7 @@ impl Display {
             report,
             restarts: RestartTracker::new(config.policy),
             finished: false,
+            started: Instant::now(),
         }
     }
 }
@@ -326,7 +329,7 @@ impl Display {
         self.accum.add(version);
         self.shown += 1;
         let c = &self.counters;
-        let stats = FrameStats {
+        let mut stats = FrameStats {
             frame: closed.frame,
             state_version: version,
             jobs_back: closed.back,
@@ -334,6 +337,7 @@ impl Display {
             q,
             i,
             wait_ms: elapsed.as_secs_f64() * 1e3,
+            shown_at_ms: self.started.elapsed().as_secs_f64() * 1e3,
             skipped: std::mem::take(&mut self.skipped_since_show),
             dropped_late: Counters::get(&c.dropped_late),
             dropped_duplicate: Counters::get(&c.dropped_duplicate),
@@ -343,11 +347,15 @@ impl Display {
             bytes_out: Counters::get(&c.bytes_out),
             shown: self.shown,
             accumulated_frames: self.accum.frames(),
+            edits_at: c.edits.shown(version),
+            edit_latency_ms: Vec::new(),
         };
+        stats.stamp_edit_latency(Instant::now());
         let frame = PackedShownFrame {
             frame: closed.frame,
             state: closed.state,
             results: closed.results,
+            owners: closed.owners,
             stats: stats.clone(),
         };
         if let Some(tx) = &self.sink_tx {

@@ -24,7 +24,7 @@ use crate::edit::{Edit, EditError};
 use crate::frame_table::ConnId;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
 use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT};
-use crate::scene_holder::{ApplyEdit, CurrentState, PlayScript, SceneHolder};
+use crate::scene_holder::{ApplyEdit, CurrentState, EditMade, PlayScript, SceneHolder};
 use crate::scheduler::{Scheduler, SchedulerLinks};
 use crate::sets::SetTable;
 use crate::sink::FrameSink;
@@ -289,6 +289,12 @@ impl MasterHandle {
     /// The workers connected now, with their rates.
     pub fn workers(&self) -> Vec<crate::workers::WorkerInfo> {
         self.counters.workers_table.list()
+    }
+
+    /// Applies an edit that happened at `at` (an input event), without waiting: the
+    /// window's path. The edit-to-display latency is measured from `at`.
+    pub fn edit_made(&self, edit: Edit, at: Instant) {
+        self.scene.do_send(EditMade { edit, at });
     }
 
     /// Plays an interaction script from now on.
