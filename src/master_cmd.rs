@@ -52,6 +52,9 @@ pub struct MasterOptions {
     pub script: Option<PathBuf>,
     /// Stop after this many shown frames (`None`: until Ctrl-C).
     pub frames: Option<u64>,
+    /// Keep queued jobs of outdated scene states (the behaviour before stale-job discard;
+    /// only to measure what the discard gains).
+    pub keep_stale_jobs: bool,
     pub headless: HeadlessOptions,
 }
 
@@ -96,6 +99,7 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     config.pipeline = opts.pipeline.max(1);
     config.secret = opts.secret.clone();
     config.max_frames = opts.frames;
+    config.discard_stale_jobs = !opts.keep_stale_jobs;
     Ok(Prepared { config, state: loaded.state, store, assets: Arc::new(loaded.assets), params })
 }
 

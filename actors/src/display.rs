@@ -20,7 +20,7 @@ use crate::accumulate::Accumulator;
 use crate::assembler::{CloseFrame, FrameProgress};
 use crate::frame_table::ClosedFrame;
 use crate::protocol::FrameNo;
-use crate::scheduler::{FrameDisplayed, FramesAbandoned};
+use crate::scheduler::{FrameDisplayed, FramesAbandoned, FramesOutdated};
 use crate::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
 use crate::stats::{Counters, FrameStats};
 use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
@@ -77,6 +77,9 @@ pub struct Display {
     /// and left out of the frame time, so lost work cannot stretch I_max (each skip at
     /// I_max would otherwise multiply the next frame's wait by I_max).
     abandoned_before: FrameNo,
+    /// Frames below this one have an outdated scene state: shown at once with what they
+    /// have (skipped when empty), never waited for, and left out of the frame time.
+    outdated_before: FrameNo,
     last_close_at: Instant,
     /// A CloseFrame is on its way to the assembler.
     closing: bool,
@@ -124,6 +127,7 @@ impl Display {
             pending: BTreeMap::new(),
             last_closed: None,
             abandoned_before: 0,
+            outdated_before: 0,
             last_close_at: Instant::now(),
             closing: false,
             skipped_since_show: 0,
@@ -222,6 +226,14 @@ impl Handler<FramesAbandoned> for Display {
     }
 }
 
+impl Handler<FramesOutdated> for Display {
+    type Result = ();
+    fn handle(&mut self, msg: FramesOutdated, ctx: &mut Context<Self>) {
+        self.outdated_before = self.outdated_before.max(msg.before);
+        self.evaluate(ctx);
+    }
+}
+
 impl Handler<InjectPanic> for Display {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
@@ -240,12 +252,17 @@ impl Display {
         let Some((&frame, &p)) = self.pending.iter().next() else { return };
         let start = p.scheduled_at.max(self.last_close_at);
         let elapsed = start.elapsed();
-        let abandoned = frame < self.abandoned_before;
-        // An abandoned frame is judged as if its time were up: shown if good enough.
+        let outdated = frame < self.outdated_before;
+        let abandoned = frame < self.abandoned_before || outdated;
+        // An abandoned frame is judged as if its time were up: shown if good enough. An
+        // outdated one is shown with whatever came back: its pixels are the newest the
+        // grid has, and waiting for more would only delay the new state's first frame.
         let judged_at = if abandoned { Duration::MAX } else { elapsed };
         let decision = match contain(|| {
             decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time)
         }) {
+            Ok(_) if outdated && p.back > 0 => Decision::Show,
+            Ok(_) if outdated => Decision::Skip,
             Ok(d) => d,
             Err(msg) => return self.restart_after(&msg, ctx),
         };

@@ -63,6 +63,9 @@ pub struct MasterConfig {
     pub peer_timeout: Duration,
     pub initial_frame_time: Duration,
     pub restart: RestartPolicy,
+    /// A state change discards the queued jobs of older versions and the display does
+    /// not wait for their held ones (default); `false` only to measure what that gains.
+    pub discard_stale_jobs: bool,
 }
 
 impl MasterConfig {
@@ -81,6 +84,7 @@ impl MasterConfig {
             peer_timeout: PEER_TIMEOUT,
             initial_frame_time: DEFAULT_INITIAL_FRAME_TIME,
             restart: RestartPolicy::default(),
+            discard_stale_jobs: true,
         }
     }
 }
@@ -235,15 +239,19 @@ fn wire(
         frames_to: assembler.clone().recipient(),
         handouts_to: assembler.clone().recipient(),
         abandoned_to: display.clone().recipient(),
+        outdated_to: display.clone().recipient(),
     };
-    scheduler_ctx.run(Scheduler::new(
-        config.sets.sets,
-        threshold,
-        state.clone(),
-        links,
-        counters.clone(),
-        config.restart,
-    ));
+    scheduler_ctx.run(
+        Scheduler::new(
+            config.sets.sets,
+            threshold,
+            state.clone(),
+            links,
+            counters.clone(),
+            config.restart,
+        )
+        .with_stale_discard(config.discard_stale_jobs),
+    );
     let scene =
         SceneHolder::new(state, scheduler.clone().recipient(), counters.clone(), config.restart)
             .start();

@@ -29,6 +29,8 @@ pub struct Counters {
     pub results_accepted: AtomicU64,
     /// Jobs handed out by the scheduler.
     pub jobs_handed_out: AtomicU64,
+    /// Queued jobs discarded because the scene state changed before they were handed out.
+    pub jobs_discarded_stale: AtomicU64,
     /// Hand-outs of a (frame, set) that had been handed out before; the no-redundancy
     /// invariant (at most S jobs per frame) says this stays 0.
     pub jobs_handed_twice: AtomicU64,

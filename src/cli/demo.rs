@@ -51,6 +51,10 @@ pub struct Args {
     /// Pixel sets per frame.
     #[arg(long, default_value_t = DEFAULT_SETS)]
     pub sets: u32,
+    /// Keep queued jobs of outdated scene states when the scene changes (the old
+    /// scheduler; to measure the edit-to-display latency without the discard).
+    #[arg(long, hide = true)]
+    pub keep_stale_jobs: bool,
     #[command(flatten)]
     pub pacing: PacingArgs,
     #[command(flatten)]
@@ -88,6 +92,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         secret: Some(secret_hex),
         script: args.script.clone(),
         frames: if windowed { args.frames } else { Some(args.frames.unwrap_or(DEFAULT_FRAMES)) },
+        keep_stale_jobs: args.keep_stale_jobs,
         headless: HeadlessOptions {
             out_dir: Some(args.out.clone()),
             stats: Some(args.out.join("stats.jsonl")),

@@ -182,6 +182,7 @@ impl Args {
             secret,
             script: self.script.clone(),
             frames: self.frames,
+            keep_stale_jobs: false,
             headless: HeadlessOptions {
                 out_dir: self.out.clone(),
                 stats: self.stats.clone(),
