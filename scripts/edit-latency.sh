@@ -15,7 +15,7 @@ ROUNDS="${1:-3}"
 shift || true
 [ "${1:-}" = "--" ] && shift
 EXTRA=("$@")
-BIN=target/release/gridlight
+BIN="${GRIDLIGHT_BIN:-target/release/gridlight}"
 [ -x "$BIN" ] || cargo build --release
 OUT="$(mktemp -d)"
 trap 'rm -rf "$OUT"' EXIT

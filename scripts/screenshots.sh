@@ -10,7 +10,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SPP="${1:-64}"
-BIN=target/release/gridlight
+BIN="${GRIDLIGHT_BIN:-target/release/gridlight}"
 [ -x "$BIN" ] || cargo build --release
 OUT=docs/images
 mkdir -p "$OUT"

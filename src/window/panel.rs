@@ -198,7 +198,7 @@ fn status_section(ui: &mut egui::Ui, s: &StatusView) {
             Some(l) => format!("{:.0} ms (median {:.0}, p95 {:.0})", l.last, l.median, l.p95),
             None => "no edit shown yet".into(),
         };
-        grid_row(ui, "edit → display", latency);
+        grid_row(ui, "edit to display", latency);
         grid_row(ui, "frames skipped", s.frames_skipped.to_string());
         grid_row(ui, "dropped late", s.dropped_late.to_string());
         grid_row(ui, "not drawn", format!("{} (a newer frame came)", s.frames_replaced));
