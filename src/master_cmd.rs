@@ -55,6 +55,8 @@ pub struct MasterOptions {
     /// Keep queued jobs of outdated scene states (the behaviour before stale-job discard;
     /// only to measure what the discard gains).
     pub keep_stale_jobs: bool,
+    /// Frames handed to the sink ahead of it (1 by default for `master` and `demo`).
+    pub sink_in_flight: usize,
     pub headless: HeadlessOptions,
 }
 
@@ -100,6 +102,9 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     config.secret = opts.secret.clone();
     config.max_frames = opts.frames;
     config.discard_stale_jobs = !opts.keep_stale_jobs;
+    // A person watches these frames: the newest view decided when the sink is free beats
+    // a frame decided earlier and queued behind another (edit-to-display latency).
+    config.sink_in_flight = opts.sink_in_flight;
     Ok(Prepared { config, state: loaded.state, store, assets: Arc::new(loaded.assets), params })
 }
 

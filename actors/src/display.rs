@@ -26,8 +26,11 @@ use crate::stats::{Counters, FrameStats};
 use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
 
-/// Frames handed to the sink thread and not yet shown, at most.
-const SINK_IN_FLIGHT: usize = 2;
+/// Frames handed to the sink thread and not yet shown, at most, by default: two keep a
+/// fast sink busy. An interactive master uses one ([`DisplayConfig::sink_in_flight`]): a
+/// frame waiting behind another in the sink is a frame decided one compose time before
+/// it is shown, so it shows an older view than the one decided when the sink is free.
+pub const DEFAULT_SINK_IN_FLIGHT: usize = 2;
 
 /// The sink finished one frame (or failed).
 #[derive(Message)]
@@ -93,6 +96,8 @@ pub struct Display {
     sink_tx: Option<SyncSender<PackedShownFrame>>,
     sink_thread: Option<JoinHandle<()>>,
     sink_in_flight: usize,
+    /// The most frames handed to the sink and not yet shown.
+    max_sink_in_flight: usize,
     close_to: Recipient<CloseFrame>,
     displayed_to: Recipient<FrameDisplayed>,
     counters: Arc<Counters>,
@@ -110,6 +115,8 @@ pub struct DisplayConfig {
     pub initial_frame_time: Duration,
     pub max_frames: Option<u64>,
     pub policy: RestartPolicy,
+    /// Frames handed to the sink and not yet shown, at most (at least 1).
+    pub sink_in_flight: usize,
 }
 
 impl Display {
@@ -139,6 +146,7 @@ impl Display {
             sink_tx: None,
             sink_thread: None,
             sink_in_flight: 0,
+            max_sink_in_flight: config.sink_in_flight.max(1),
             close_to,
             displayed_to,
             counters,
@@ -156,7 +164,8 @@ impl Actor for Display {
     fn started(&mut self, ctx: &mut Context<Self>) {
         let Some(sink) = self.sink.take() else { return };
         let me = ctx.address();
-        match spawn_sink(sink, SINK_IN_FLIGHT, move |outcome| me.do_send(SinkDone(outcome))) {
+        let capacity = self.max_sink_in_flight;
+        match spawn_sink(sink, capacity, move |outcome| me.do_send(SinkDone(outcome))) {
             Ok((tx, thread)) => {
                 self.sink_tx = Some(tx);
                 self.sink_thread = Some(thread);
@@ -246,7 +255,7 @@ impl Handler<InjectPanic> for Display {
 impl Display {
     /// Decides about the oldest frame not yet displayed.
     fn evaluate(&mut self, ctx: &mut Context<Self>) {
-        if self.closing || self.finished || self.sink_in_flight >= SINK_IN_FLIGHT {
+        if self.closing || self.finished || self.sink_in_flight >= self.max_sink_in_flight {
             return;
         }
         let Some((&frame, &p)) = self.pending.iter().next() else { return };
@@ -255,13 +264,18 @@ impl Display {
         let outdated = frame < self.outdated_before;
         let abandoned = frame < self.abandoned_before || outdated;
         // An abandoned frame is judged as if its time were up: shown if good enough. An
-        // outdated one is shown with whatever came back: its pixels are the newest the
-        // grid has, and waiting for more would only delay the new state's first frame.
+        // outdated one is never waited for: the newest outdated frame with results is
+        // shown at once with what came back (its pixels are the newest view the grid
+        // has; during a steady drag no frame would ever reach Q_min otherwise), older
+        // outdated ones are skipped (showing them would only cost the sink a frame and
+        // delay the newer one).
         let judged_at = if abandoned { Duration::MAX } else { elapsed };
+        let superseded = outdated
+            && self.pending.range(frame + 1..self.outdated_before).any(|(_, later)| later.back > 0);
         let decision = match contain(|| {
             decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time)
         }) {
-            Ok(_) if outdated && p.back > 0 => Decision::Show,
+            Ok(_) if outdated && p.back > 0 && !superseded => Decision::Show,
             Ok(_) if outdated => Decision::Skip,
             Ok(d) => d,
             Err(msg) => return self.restart_after(&msg, ctx),

@@ -63,6 +63,9 @@ pub struct MasterConfig {
     pub peer_timeout: Duration,
     pub initial_frame_time: Duration,
     pub restart: RestartPolicy,
+    /// Frames the display hands to the sink ahead of it (1 for the least latency, 2 to
+    /// keep a fast sink busy: [`crate::display::DEFAULT_SINK_IN_FLIGHT`]).
+    pub sink_in_flight: usize,
     /// A state change discards the queued jobs of older versions and the display does
     /// not wait for their held ones (default); `false` only to measure what that gains.
     pub discard_stale_jobs: bool,
@@ -85,6 +88,7 @@ impl MasterConfig {
             initial_frame_time: DEFAULT_INITIAL_FRAME_TIME,
             restart: RestartPolicy::default(),
             discard_stale_jobs: true,
+            sink_in_flight: crate::display::DEFAULT_SINK_IN_FLIGHT,
         }
     }
 }
@@ -220,6 +224,7 @@ fn wire(
         initial_frame_time: config.initial_frame_time,
         max_frames: config.max_frames,
         policy: config.restart,
+        sink_in_flight: config.sink_in_flight,
     };
     display_ctx.run(Display::new(
         display_config,

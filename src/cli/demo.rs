@@ -55,6 +55,10 @@ pub struct Args {
     /// scheduler; to measure the edit-to-display latency without the discard).
     #[arg(long, hide = true)]
     pub keep_stale_jobs: bool,
+    /// Frames handed to the frame sink ahead of it (1: least latency; 2 was the default
+    /// before; to measure the difference).
+    #[arg(long, hide = true, default_value_t = 1)]
+    pub sink_in_flight: usize,
     #[command(flatten)]
     pub pacing: PacingArgs,
     #[command(flatten)]
@@ -93,6 +97,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         script: args.script.clone(),
         frames: if windowed { args.frames } else { Some(args.frames.unwrap_or(DEFAULT_FRAMES)) },
         keep_stale_jobs: args.keep_stale_jobs,
+        sink_in_flight: args.sink_in_flight,
         headless: HeadlessOptions {
             out_dir: Some(args.out.clone()),
             stats: Some(args.out.join("stats.jsonl")),

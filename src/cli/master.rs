@@ -183,6 +183,7 @@ impl Args {
             script: self.script.clone(),
             frames: self.frames,
             keep_stale_jobs: false,
+            sink_in_flight: 1,
             headless: HeadlessOptions {
                 out_dir: self.out.clone(),
                 stats: self.stats.clone(),
