@@ -6,9 +6,10 @@
 #
 #   bash scripts/edit-latency.sh [ROUNDS] [-- extra demo flags]
 #
-# Each round runs the default scheduler and then `--keep-stale-jobs` (queued jobs of an
-# outdated view are kept, the behaviour before stale-job discard), alternating so that a
-# shared machine's load hits both alike. Needs a release build and python3.
+# Each round runs the default master and then the one before issue 18
+# (`--keep-stale-jobs --sink-in-flight 2`: queued jobs of an outdated view are kept and
+# the display hands the sink two frames ahead), alternating so that a shared machine's
+# load hits both alike. Needs a release build (or GRIDLIGHT_BIN) and python3.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROUNDS="${1:-3}"
@@ -52,16 +53,16 @@ PY
 
 for i in $(seq "$ROUNDS"); do
   run "discard-$i" | tee -a "$OUT/all.jsonl"
-  run "keep-$i" --keep-stale-jobs | tee -a "$OUT/all.jsonl"
+  run "before-$i" --keep-stale-jobs --sink-in-flight 2 | tee -a "$OUT/all.jsonl"
 done
 python3 - "$OUT/all.jsonl" <<'PY'
 import json, statistics, sys
 runs = [json.loads(l) for l in open(sys.argv[1])]
-for kind in ("discard", "keep"):
+for kind in ("discard", "before"):
     rs = [r for r in runs if r["run"].startswith(kind) and r["latency_p95_ms"] is not None]
     if not rs: continue
     med = lambda k: statistics.median(r[k] for r in rs)
-    print(json.dumps({"scheduler": kind + ("" if kind == "keep" else " (default)"),
+    print(json.dumps({"master": "default" if kind == "discard" else "before issue 18",
         "runs": len(rs),
         "latency_median_ms": round(med("latency_median_ms"), 1),
         "latency_p95_ms": round(med("latency_p95_ms"), 1),
