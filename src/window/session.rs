@@ -195,10 +195,9 @@ impl MasterSession {
         view: SharedView,
         script_path: PathBuf,
         on_shutdown: Option<Box<dyn FnOnce()>>,
-        report: SharedReport,
     ) -> Self {
         Self {
-            report,
+            report: SharedReport::default(),
             handle: Some(handle),
             state: initial.clone(),
             initial,
@@ -208,6 +207,14 @@ impl MasterSession {
             script_path,
             on_shutdown,
         }
+    }
+}
+
+impl MasterSession {
+    /// Leaves the master's report in `report` when the session stops it.
+    pub fn reporting_to(mut self, report: SharedReport) -> Self {
+        self.report = report;
+        self
     }
 }
 
@@ -333,16 +340,9 @@ pub fn run_master_window(
         let sink = WindowSink::new(composer, Arc::clone(&view), frames, proxy);
         let handle = gridlight_actors::master::start(config, state.clone(), store, Box::new(sink))
             .map_err(|e| format!("cannot start the master: {e}"))?;
-        let mut session = MasterSession::new(
-            handle,
-            state,
-            pacing,
-            scene,
-            view,
-            script_path,
-            on_shutdown,
-            session_report,
-        );
+        let mut session =
+            MasterSession::new(handle, state, pacing, scene, view, script_path, on_shutdown)
+                .reporting_to(session_report);
         let addr = session.handle.as_ref().map(|h| h.local_addr());
         if let Some(addr) = addr {
             if let Err(e) = on_listening(addr) {
