@@ -100,6 +100,11 @@ impl Composer {
         if view == View::Final {
             return Ok(Composed { width, height, rgba: out.display, linear: Some(out.colour) });
         }
+        let owner = if view == View::Workers {
+            frame.owners.per_pixel(frame.current.len())
+        } else {
+            Vec::new()
+        };
         let planes = ViewInputs {
             width,
             height,
@@ -108,6 +113,7 @@ impl Composer {
             albedo: &g.albedo,
             emission: &g.emission,
             normal: &g.normal,
+            owner: &owner,
         };
         let exposure = self.params.exposure;
         let rgba =
@@ -136,6 +142,7 @@ mod tests {
             state: Arc::new(state.clone()),
             current: radiance.clone(),
             current_mask: mask.clone(),
+            owners: Default::default(),
             stats: FrameStats { frame: 1, ..FrameStats::default() },
         }
     }

@@ -94,9 +94,11 @@ impl HeadlessSink {
         &self.summary
     }
 
-    fn write_frame(&mut self, frame: &ShownFrame) -> Result<(), String> {
+    fn write_frame(&mut self, frame: &mut ShownFrame) -> Result<(), String> {
         let composed =
             self.composer.compose(frame, self.options.view).map_err(|e| e.to_string())?;
+        // Composed is what the headless master shows: the edit latency ends here.
+        frame.stats.stamp_edit_latency(std::time::Instant::now());
         if let Some(dir) = &self.options.out_dir {
             let (w, h) = (composed.width, composed.height);
             let path = frame_path(dir, frame.frame);
@@ -146,7 +148,7 @@ impl HeadlessSink {
 }
 
 impl FrameSink for HeadlessSink {
-    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
+    fn show(&mut self, mut frame: ShownFrame) -> Result<(), SinkError> {
         self.count(&frame);
         if self.options.verbose {
             let s = &frame.stats;
@@ -158,7 +160,7 @@ impl FrameSink for HeadlessSink {
                 "frame shown"
             );
         }
-        self.write_frame(&frame).map_err(SinkError::Other)
+        self.write_frame(&mut frame).map_err(SinkError::Other)
     }
 
     fn finish(&mut self) {
@@ -212,6 +214,7 @@ mod tests {
                 state: Arc::new(small.clone()),
                 current: vec![Vec3::ONE; 8],
                 current_mask: vec![true; 8],
+                owners: Default::default(),
                 stats: FrameStats { frame: 7, q: 0.5, jobs_back: 4, ..FrameStats::default() },
             })
             .unwrap();

@@ -18,6 +18,47 @@ pub enum ImageIoError {
     SizeMismatch { width: u32, height: u32, len: usize },
     #[error("cannot write `{}`: {source}", path.display())]
     Write { path: PathBuf, source: image::ImageError },
+    #[error("cannot write `{}`: {source}", path.display())]
+    Unwritable { path: PathBuf, source: std::io::Error },
+}
+
+/// An output file checked to be writable before the work that fills it; removed again on
+/// drop unless [`ClaimedOutput::keep`] is called and the file did not exist before.
+#[derive(Debug)]
+pub struct ClaimedOutput {
+    path: PathBuf,
+    created: bool,
+    keep: bool,
+}
+
+impl ClaimedOutput {
+    /// Checks the format and that `path` can be written, by opening it for writing
+    /// (created empty when missing; an existing file is left as it is until written).
+    pub fn claim(path: &Path) -> Result<Self, ImageIoError> {
+        ImageFormat::from_path(path)?;
+        let existed = path.exists();
+        std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)
+            .map_err(|source| ImageIoError::Unwritable { path: path.to_path_buf(), source })?;
+        Ok(Self { path: path.to_path_buf(), created: !existed, keep: false })
+    }
+
+    /// The image was written: keep the file.
+    pub fn keep(mut self) {
+        self.keep = true;
+    }
+}
+
+impl Drop for ClaimedOutput {
+    fn drop(&mut self) {
+        // Leave no empty file behind when the work failed.
+        if self.created && !self.keep {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
 }
 
 /// The file formats gridlight writes.

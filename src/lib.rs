@@ -10,6 +10,7 @@
 //! - [`children`]: child processes killed with their parent (the demo's workers).
 //! - [`headless`]: the headless frame sink (G-buffer, PNG frames, statistics).
 //! - [`master_cmd`]: running a master from a scene file (`master` and `demo` commands).
+//! - [`signals`]: Ctrl-C and SIGTERM as a callback (headless master and window).
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
 //! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
 //! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
@@ -39,6 +40,7 @@ pub mod reconstruct;
 pub mod render;
 pub mod scene;
 pub mod shapes;
+pub mod signals;
 pub mod view;
 pub mod window;
 pub mod worker;

@@ -4,13 +4,14 @@
 //! into the store workers fetch from, and resolves pacing and reconstruction (command
 //! line over the scene file over the paper); [`run`] starts the actor system with the
 //! headless sink, prints the address it listens on, plays the interaction script and
-//! waits until the frame limit or Ctrl-C, then stops cleanly and returns the report;
-//! [`run_window`] does the same with the window as the sink, until the window closes.
+//! waits until the frame limit or Ctrl-C/SIGTERM, then stops cleanly and returns the
+//! report; [`run_window`] does the same with the window as the sink, until the window
+//! closes or Ctrl-C/SIGTERM arrives.
 
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -27,7 +28,7 @@ use crate::cli::master::DisplayArgs;
 use crate::compose::Composer;
 use crate::headless::{HeadlessOptions, HeadlessSink};
 use crate::reconstruct::ReconstructParams;
-use crate::scene::{AssetResolver, AssetSearchPath, PacingOverrides};
+use crate::scene::{AssetResolver, PacingOverrides, SceneSource};
 
 /// Address `gridlight master` listens on when `--listen` is not given.
 pub const DEFAULT_LISTEN: &str = "0.0.0.0:7840";
@@ -38,7 +39,7 @@ pub const LISTENING_PREFIX: &str = "gridlight master listening on ";
 /// Everything a master run needs.
 #[derive(Clone, Debug)]
 pub struct MasterOptions {
-    pub scene: PathBuf,
+    pub scene: SceneSource,
     /// `--assets` directories (searched before `GRIDLIGHT_ASSETS` and `scenes/assets/`).
     pub asset_dirs: Vec<PathBuf>,
     pub listen: SocketAddr,
@@ -55,6 +56,11 @@ pub struct MasterOptions {
     pub script: Option<PathBuf>,
     /// Stop after this many shown frames (`None`: until Ctrl-C).
     pub frames: Option<u64>,
+    /// Keep queued jobs of outdated scene states (the behaviour before stale-job discard;
+    /// only to measure what the discard gains).
+    pub keep_stale_jobs: bool,
+    /// Frames handed to the sink ahead of it (1 by default for `master` and `demo`).
+    pub sink_in_flight: usize,
     pub headless: HeadlessOptions,
 }
 
@@ -70,7 +76,7 @@ pub struct AnnounceOptions {
 
 impl AnnounceOptions {
     /// The actors' announce configuration for a master listening on `listen`.
-    fn config(&self, listen: SocketAddr, scene: &std::path::Path) -> Option<AnnounceConfig> {
+    fn config(&self, listen: SocketAddr, scene: &SceneSource) -> Option<AnnounceConfig> {
         self.enabled.then(|| AnnounceConfig {
             to: self.to.unwrap_or_else(|| discovery::default_target(listen)),
             name: self
@@ -78,7 +84,7 @@ impl AnnounceOptions {
                 .clone()
                 .or_else(crate::worker::host_name)
                 .unwrap_or_else(|| "gridlight".into()),
-            scene: scene.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned()),
+            scene: scene.name(),
             interval: discovery::ANNOUNCE_INTERVAL,
         })
     }
@@ -98,16 +104,16 @@ impl Prepared {
     /// A composer for this run's frames.
     pub fn composer(&self, opts: &MasterOptions) -> anyhow::Result<Composer> {
         Composer::new(Arc::clone(&self.assets), &self.state, self.params, opts.display.reconstruct)
-            .with_context(|| format!("preparing reconstruction for {}", opts.scene.display()))
+            .with_context(|| format!("preparing reconstruction for {}", opts.scene))
     }
 }
 
 /// Loads the scene and its assets and resolves the settings.
 pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
-    let search = AssetSearchPath::from_env(&opts.asset_dirs, Some(&opts.scene));
-    let loaded = crate::scene::load(&opts.scene, &search)?;
+    let search = opts.scene.search_path(&opts.asset_dirs);
+    let loaded = crate::scene::load_source(&opts.scene, &search)?;
     let manifest = crate::scene::manifest(&loaded.state, &search)
-        .with_context(|| format!("hashing the assets of {}", opts.scene.display()))?;
+        .with_context(|| format!("hashing the assets of {}", opts.scene))?;
     let mut store = AssetStore::new();
     for entry in &manifest {
         let file = search.resolve(&entry.path)?;
@@ -126,6 +132,10 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     config.secret = opts.secret.clone();
     config.max_frames = opts.frames;
     config.announce = opts.announce.config(opts.listen, &opts.scene);
+    config.discard_stale_jobs = !opts.keep_stale_jobs;
+    // A person watches these frames: the newest view decided when the sink is free beats
+    // a frame decided earlier and queued behind another (edit-to-display latency).
+    config.sink_in_flight = opts.sink_in_flight;
     Ok(Prepared { config, state: loaded.state, store, assets: Arc::new(loaded.assets), params })
 }
 
@@ -148,10 +158,10 @@ pub fn run(
     if let Some(script) = script {
         handle.play_script(script);
     }
-    let interrupted = ctrl_c_flag()?;
-    while !handle.wait_finished(Duration::from_millis(200)) {
+    let interrupted = crate::signals::stop_flag().context("installing the Ctrl-C handler")?;
+    while !handle.wait_finished(Duration::from_millis(100)) {
         if interrupted.load(Ordering::SeqCst) {
-            info!("Ctrl-C: stopping the master");
+            info!("Ctrl-C or SIGTERM: stopping the master");
             break;
         }
     }
@@ -163,13 +173,14 @@ pub fn run(
 }
 
 /// Runs a master whose frames go to a window on this thread, until the window closes
-/// (or the frame limit); then `on_shutdown` runs (the demo stops its workers there).
+/// (or the frame limit, Ctrl-C or SIGTERM); then `on_shutdown` runs (the demo stops its
+/// workers there). Returns the master's report, as [`run`] does.
 pub fn run_window(
     opts: &MasterOptions,
     window: crate::window::WindowOptions,
     on_listening: impl FnOnce(SocketAddr) -> anyhow::Result<()> + 'static,
     on_shutdown: Option<Box<dyn FnOnce()>>,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<MasterReport> {
     let prepared = prepare(opts)?;
     let script = load_script(opts)?;
     let composer = prepared.composer(opts)?;
@@ -186,8 +197,12 @@ pub fn run_window(
         }),
         on_shutdown,
     };
-    crate::window::session::run_master_window(window, start)
-        .context("running the window (use --headless to run without one)")
+    let report = crate::window::session::run_master_window(window, start)
+        .context("running the window (use --headless to run without one)")?;
+    if let Some(err) = &report.error {
+        bail!("the master stopped on an error: {err}");
+    }
+    Ok(report)
 }
 
 fn load_script(
@@ -210,19 +225,4 @@ fn announce(addr: SocketAddr) {
     println!("{LISTENING_PREFIX}{addr}");
     let _ = std::io::stdout().flush();
     info!(%addr, "master started");
-}
-
-/// A flag set by Ctrl-C (a tokio signal listener on a small thread of its own).
-pub fn ctrl_c_flag() -> anyhow::Result<Arc<AtomicBool>> {
-    let flag = Arc::new(AtomicBool::new(false));
-    let set = Arc::clone(&flag);
-    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-    std::thread::Builder::new().name("ctrl-c".into()).spawn(move || {
-        runtime.block_on(async {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                set.store(true, Ordering::SeqCst);
-            }
-        })
-    })?;
-    Ok(flag)
 }

@@ -21,12 +21,15 @@ pub enum View {
     Normals,
     /// Primary-hit albedo.
     Albedo,
+    /// This frame's results tinted by the worker that rendered each pixel (holes black);
+    /// the panel's worker list is the legend ([`worker_colour`]).
+    Workers,
 }
 
 impl View {
     /// Every view, in the order the panel lists them.
-    pub const ALL: [View; 5] =
-        [View::Final, View::Partial, View::Mask, View::Normals, View::Albedo];
+    pub const ALL: [View; 6] =
+        [View::Final, View::Partial, View::Mask, View::Normals, View::Albedo, View::Workers];
 
     /// The panel's label.
     pub fn label(self) -> &'static str {
@@ -36,6 +39,7 @@ impl View {
             View::Mask => "mask",
             View::Normals => "normals",
             View::Albedo => "albedo",
+            View::Workers => "workers",
         }
     }
 }
@@ -51,6 +55,26 @@ pub struct ViewInputs<'a> {
     pub albedo: &'a [Vec3],
     pub emission: &'a [Vec3],
     pub normal: &'a [Vec3],
+    /// The worker (connection) whose result covers each pixel; only the workers view
+    /// reads it, the others accept an empty slice.
+    pub owner: &'a [Option<u64>],
+}
+
+/// The colour that stands for worker (connection) `id` in the workers view and its
+/// legend: hues spread by the golden ratio, so neighbouring ids differ clearly.
+pub fn worker_colour(id: u64) -> [u8; 3] {
+    let hue = (id as f64 * 0.618_033_988_749_895).fract() as f32;
+    let c = hsv(hue, 0.75, 1.0);
+    [unorm(c.x), unorm(c.y), unorm(c.z)]
+}
+
+/// HSV (all in [0, 1]) to linear-looking RGB; enough for a palette.
+fn hsv(h: f32, s: f32, v: f32) -> Vec3 {
+    let k = |n: f32| {
+        let k = (n + h * 6.0) % 6.0;
+        v - v * s * k.min(4.0 - k).clamp(0.0, 1.0)
+    };
+    Vec3::new(k(5.0), k(3.0), k(1.0))
 }
 
 /// Builds the pixels of a diagnostic view; `tonemap` turns linear colour into display
@@ -65,6 +89,9 @@ pub fn diagnostic(
     let planes =
         [inputs.radiance.len(), inputs.albedo.len(), inputs.emission.len(), inputs.normal.len()];
     if inputs.mask.len() != n || planes.iter().any(|&len| len != n) {
+        return None;
+    }
+    if view == View::Workers && inputs.owner.len() != n {
         return None;
     }
     let pixel = |i: usize| -> [u8; 4] {
@@ -87,6 +114,22 @@ pub fn diagnostic(
                 let c = inputs.albedo[i].clamp(Vec3::ZERO, Vec3::ONE);
                 [unorm(srgb(c.x)), unorm(srgb(c.y)), unorm(srgb(c.z)), 255]
             }
+            View::Workers => match inputs.owner[i] {
+                Some(id) if inputs.mask[i] => {
+                    // The worker's colour, shaded by the pixel's brightness so the scene
+                    // stays recognisable under the tint.
+                    let shown = tonemap(inputs.albedo[i] * inputs.radiance[i] + inputs.emission[i]);
+                    let luma = (0.2126 * f32::from(shown[0])
+                        + 0.7152 * f32::from(shown[1])
+                        + 0.0722 * f32::from(shown[2]))
+                        / 255.0;
+                    let shade = 0.35 + 0.65 * luma;
+                    let c = worker_colour(id);
+                    let tint = |v: u8| (f32::from(v) * shade + 0.5) as u8;
+                    [tint(c[0]), tint(c[1]), tint(c[2]), 255]
+                }
+                _ => [0, 0, 0, 255],
+            },
         }
     };
     if view == View::Final {
@@ -119,6 +162,7 @@ mod tests {
         albedo: Vec<Vec3>,
         emission: Vec<Vec3>,
         normal: Vec<Vec3>,
+        owner: Vec<Option<u64>>,
     }
 
     /// Two pixels: the first has a result, the second is a hole.
@@ -129,6 +173,7 @@ mod tests {
             albedo: vec![Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)],
             emission: vec![Vec3::new(0.0, 0.0, 0.25), Vec3::ZERO],
             normal: vec![Vec3::Z, Vec3::ZERO],
+            owner: vec![Some(3), None],
         }
     }
 
@@ -141,6 +186,7 @@ mod tests {
             albedo: &p.albedo,
             emission: &p.emission,
             normal: &p.normal,
+            owner: &p.owner,
         }
     }
 
@@ -173,6 +219,35 @@ mod tests {
         let albedo = diagnostic(View::Albedo, &inputs(&p), linear).expect("consistent");
         assert_eq!(albedo[0], [255, 0, 0, 255]);
         assert_eq!(albedo[1], [0, 255, 0, 255]);
+    }
+
+    #[test]
+    fn workers_view_tints_each_result_by_its_worker_and_leaves_holes_black() {
+        let mut p = planes();
+        // White light so that the shade is full: the pixel is the worker's colour.
+        p.albedo[0] = Vec3::ONE;
+        p.radiance[0] = Vec3::splat(100.0);
+        let white = |_: Vec3| [255, 255, 255, 255];
+        let pic = diagnostic(View::Workers, &inputs(&p), white).expect("consistent");
+        let c = worker_colour(3);
+        assert_eq!(pic[0], [c[0], c[1], c[2], 255]);
+        assert_eq!(pic[1], [0, 0, 0, 255], "hole");
+        // A dark pixel keeps a dimmed tint of the same hue.
+        let black = |_: Vec3| [0, 0, 0, 255];
+        let dim = diagnostic(View::Workers, &inputs(&p), black).expect("consistent")[0];
+        assert!(dim[..3].iter().zip(c).all(|(d, c)| *d < c || c == 0), "{dim:?} vs {c:?}");
+        // Without owners the view cannot be made.
+        p.owner.clear();
+        assert!(diagnostic(View::Workers, &inputs(&p), white).is_none());
+    }
+
+    #[test]
+    fn worker_colours_differ_between_neighbouring_ids() {
+        for id in 0..16u64 {
+            let (a, b) = (worker_colour(id), worker_colour(id + 1));
+            let d: i32 = a.iter().zip(b).map(|(x, y)| (i32::from(*x) - i32::from(y)).abs()).sum();
+            assert!(d > 60, "ids {id} and {}: {a:?} vs {b:?}", id + 1);
+        }
     }
 
     #[test]

@@ -114,7 +114,10 @@ impl Handler<ResultArrived> for Assembler {
                     Counters::add(&c.results_accepted, 1);
                     a.progress_to.do_send(FrameProgress { frame, state_version, back, total });
                 }
-                Verdict::Late => Counters::add(&c.dropped_late, 1),
+                Verdict::Late => {
+                    Counters::add(&c.dropped_late, 1);
+                    c.workers_table.late(msg.conn);
+                }
                 Verdict::Duplicate => Counters::add(&c.dropped_duplicate, 1),
                 Verdict::Unknown => Counters::add(&c.dropped_unknown, 1),
             }

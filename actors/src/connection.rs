@@ -300,6 +300,7 @@ impl Connection {
                 self.welcomed = true;
                 Counters::add(&self.counters.workers, 1);
                 self.counters.workers_table.joined(self.id, &self.name, self.cores);
+                self.counters.workers_table.located(self.id, &self.peer.ip().to_string());
                 tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer, "worker joined");
                 self.send(MasterMsg::Welcome {
                     worker_id: self.id,
@@ -419,6 +420,7 @@ impl Connection {
                 }
                 self.remember_answered(key);
                 self.counters.workers_table.heard(self.id, 1);
+                self.counters.workers_table.timed(self.id, r.render_us);
                 self.links.results_to.do_send(ResultArrived { conn: self.id, result: r });
             }
             None if self.answered_set.contains(&key) => {

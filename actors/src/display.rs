@@ -20,14 +20,17 @@ use crate::accumulate::Accumulator;
 use crate::assembler::{CloseFrame, FrameProgress};
 use crate::frame_table::ClosedFrame;
 use crate::protocol::FrameNo;
-use crate::scheduler::{FrameDisplayed, FramesAbandoned};
+use crate::scheduler::{FrameDisplayed, FramesAbandoned, FramesOutdated};
 use crate::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
 use crate::stats::{Counters, FrameStats};
 use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
 
-/// Frames handed to the sink thread and not yet shown, at most.
-const SINK_IN_FLIGHT: usize = 2;
+/// Frames handed to the sink thread and not yet shown, at most, by default: two keep a
+/// fast sink busy. An interactive master uses one ([`DisplayConfig::sink_in_flight`]): a
+/// frame waiting behind another in the sink is a frame decided one compose time before
+/// it is shown, so it shows an older view than the one decided when the sink is free.
+pub const DEFAULT_SINK_IN_FLIGHT: usize = 2;
 
 /// The sink finished one frame (or failed).
 #[derive(Message)]
@@ -77,6 +80,9 @@ pub struct Display {
     /// and left out of the frame time, so lost work cannot stretch I_max (each skip at
     /// I_max would otherwise multiply the next frame's wait by I_max).
     abandoned_before: FrameNo,
+    /// Frames below this one have an outdated scene state: shown at once with what they
+    /// have (skipped when empty), never waited for, and left out of the frame time.
+    outdated_before: FrameNo,
     last_close_at: Instant,
     /// A CloseFrame is on its way to the assembler.
     closing: bool,
@@ -90,12 +96,16 @@ pub struct Display {
     sink_tx: Option<SyncSender<PackedShownFrame>>,
     sink_thread: Option<JoinHandle<()>>,
     sink_in_flight: usize,
+    /// The most frames handed to the sink and not yet shown.
+    max_sink_in_flight: usize,
     close_to: Recipient<CloseFrame>,
     displayed_to: Recipient<FrameDisplayed>,
     counters: Arc<Counters>,
     report: Arc<Report>,
     restarts: RestartTracker,
     finished: bool,
+    /// When the display was made (the master's start), for `shown_at_ms`.
+    started: Instant,
 }
 
 /// Construction parameters of the display.
@@ -105,6 +115,8 @@ pub struct DisplayConfig {
     pub initial_frame_time: Duration,
     pub max_frames: Option<u64>,
     pub policy: RestartPolicy,
+    /// Frames handed to the sink and not yet shown, at most (at least 1).
+    pub sink_in_flight: usize,
 }
 
 impl Display {
@@ -122,6 +134,7 @@ impl Display {
             pending: BTreeMap::new(),
             last_closed: None,
             abandoned_before: 0,
+            outdated_before: 0,
             last_close_at: Instant::now(),
             closing: false,
             skipped_since_show: 0,
@@ -133,12 +146,14 @@ impl Display {
             sink_tx: None,
             sink_thread: None,
             sink_in_flight: 0,
+            max_sink_in_flight: config.sink_in_flight.max(1),
             close_to,
             displayed_to,
             counters,
             report,
             restarts: RestartTracker::new(config.policy),
             finished: false,
+            started: Instant::now(),
         }
     }
 }
@@ -149,7 +164,8 @@ impl Actor for Display {
     fn started(&mut self, ctx: &mut Context<Self>) {
         let Some(sink) = self.sink.take() else { return };
         let me = ctx.address();
-        match spawn_sink(sink, SINK_IN_FLIGHT, move |outcome| me.do_send(SinkDone(outcome))) {
+        let capacity = self.max_sink_in_flight;
+        match spawn_sink(sink, capacity, move |outcome| me.do_send(SinkDone(outcome))) {
             Ok((tx, thread)) => {
                 self.sink_tx = Some(tx);
                 self.sink_thread = Some(thread);
@@ -219,6 +235,14 @@ impl Handler<FramesAbandoned> for Display {
     }
 }
 
+impl Handler<FramesOutdated> for Display {
+    type Result = ();
+    fn handle(&mut self, msg: FramesOutdated, ctx: &mut Context<Self>) {
+        self.outdated_before = self.outdated_before.max(msg.before);
+        self.evaluate(ctx);
+    }
+}
+
 impl Handler<InjectPanic> for Display {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
@@ -231,18 +255,28 @@ impl Handler<InjectPanic> for Display {
 impl Display {
     /// Decides about the oldest frame not yet displayed.
     fn evaluate(&mut self, ctx: &mut Context<Self>) {
-        if self.closing || self.finished || self.sink_in_flight >= SINK_IN_FLIGHT {
+        if self.closing || self.finished || self.sink_in_flight >= self.max_sink_in_flight {
             return;
         }
         let Some((&frame, &p)) = self.pending.iter().next() else { return };
         let start = p.scheduled_at.max(self.last_close_at);
         let elapsed = start.elapsed();
-        let abandoned = frame < self.abandoned_before;
-        // An abandoned frame is judged as if its time were up: shown if good enough.
+        let outdated = frame < self.outdated_before;
+        let abandoned = frame < self.abandoned_before || outdated;
+        // An abandoned frame is judged as if its time were up: shown if good enough. An
+        // outdated one is never waited for: the newest outdated frame with results is
+        // shown at once with what came back (its pixels are the newest view the grid
+        // has; during a steady drag no frame would ever reach Q_min otherwise), older
+        // outdated ones are skipped (showing them would only cost the sink a frame and
+        // delay the newer one).
         let judged_at = if abandoned { Duration::MAX } else { elapsed };
+        let superseded = outdated
+            && self.pending.range(frame + 1..self.outdated_before).any(|(_, later)| later.back > 0);
         let decision = match contain(|| {
             decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time)
         }) {
+            Ok(_) if outdated && p.back > 0 && !superseded => Decision::Show,
+            Ok(_) if outdated => Decision::Skip,
             Ok(d) => d,
             Err(msg) => return self.restart_after(&msg, ctx),
         };
@@ -326,7 +360,7 @@ impl Display {
         self.accum.add(version);
         self.shown += 1;
         let c = &self.counters;
-        let stats = FrameStats {
+        let mut stats = FrameStats {
             frame: closed.frame,
             state_version: version,
             jobs_back: closed.back,
@@ -334,6 +368,7 @@ impl Display {
             q,
             i,
             wait_ms: elapsed.as_secs_f64() * 1e3,
+            shown_at_ms: self.started.elapsed().as_secs_f64() * 1e3,
             skipped: std::mem::take(&mut self.skipped_since_show),
             dropped_late: Counters::get(&c.dropped_late),
             dropped_duplicate: Counters::get(&c.dropped_duplicate),
@@ -349,11 +384,15 @@ impl Display {
             bytes_out: Counters::get(&c.bytes_out),
             shown: self.shown,
             accumulated_frames: self.accum.frames(),
+            edits_at: c.edits.shown(version),
+            edit_latency_ms: Vec::new(),
         };
+        stats.stamp_edit_latency(Instant::now());
         let frame = PackedShownFrame {
             frame: closed.frame,
             state: closed.state,
             results: closed.results,
+            owners: closed.owners,
             stats: stats.clone(),
         };
         if let Some(tx) = &self.sink_tx {

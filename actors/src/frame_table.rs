@@ -46,6 +46,8 @@ pub struct ClosedFrame {
     pub state: Arc<SceneState>,
     /// The accepted results.
     pub results: PackedFrame,
+    /// Per set, the connection whose result was accepted (`None`: no result).
+    pub owners: Vec<Option<ConnId>>,
     pub back: u32,
     pub total: u32,
 }
@@ -163,10 +165,14 @@ impl FrameTable {
         // Earlier frames still open were passed over: they are displayed too.
         self.frames.retain(|f, _| *f >= frame);
         let slot = self.frames.remove(&frame)?;
+        let owners = (0..slot.holder.len())
+            .map(|s| slot.holder[s].filter(|_| slot.results.contains(s as SetNo)))
+            .collect();
         Some(ClosedFrame {
             frame,
             state: slot.state,
             results: slot.results,
+            owners,
             back: slot.back,
             total: slot.holder.len() as u32,
         })

@@ -64,9 +64,22 @@ impl JobQueue {
         }
     }
 
-    /// New frames use `state` from now on; queued jobs keep the state they were made with.
+    /// New frames use `state` from now on; queued jobs keep the state they were made with
+    /// until [`JobQueue::discard_outdated`].
     pub fn set_state(&mut self, state: Arc<SceneState>) {
         self.state = state;
+    }
+
+    /// Discards the queued jobs of frames made with an older state version than the
+    /// current one: a view the user has left is not worth rendering (the paper discards
+    /// stale jobs), and the new view's frames are queued behind them otherwise. Jobs
+    /// already handed out are not recalled; nothing discarded is queued again. Returns
+    /// how many were discarded.
+    pub fn discard_outdated(&mut self) -> usize {
+        let version = self.state.version;
+        let before = self.queue.len();
+        self.queue.retain(|j| j.state.version >= version);
+        before - self.queue.len()
     }
 
     /// The state new frames get.
@@ -227,6 +240,26 @@ pub(crate) mod tests {
         q.set_state(state(7));
         let added = q.top_up();
         assert!(added.iter().all(|f| f.state.version == 7 && f.frame >= 12));
+    }
+
+    #[test]
+    fn a_new_state_discards_the_queued_jobs_of_older_versions_at_once() {
+        let mut q = JobQueue::new(4, 8, state(1), 0);
+        q.top_up();
+        let held = q.take(3); // frame 0: three sets handed out, one still queued
+        assert_eq!(q.queued(), 5);
+        q.set_state(state(2));
+        assert_eq!(q.discard_outdated(), 5, "every queued job of version 1 goes");
+        assert_eq!(q.queued(), 0);
+        // The new view's frames come next; the discarded sets are never queued again.
+        let added = q.top_up();
+        assert!(!added.is_empty() && added.iter().all(|f| f.state.version == 2 && f.frame >= 2));
+        let jobs = q.take(100);
+        assert!(jobs.iter().all(|j| j.state.version == 2 && j.frame >= 2));
+        assert!(held.iter().all(|j| j.frame == 0));
+        // Discarding again finds nothing: the current version's jobs stay.
+        q.top_up();
+        assert_eq!(q.discard_outdated(), 0);
     }
 
     #[test]

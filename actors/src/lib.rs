@@ -14,7 +14,7 @@
 //!   [`display`], [`scene_holder`], [`announcer`]; their pure logic: [`job_queue`], [`frame_table`],
 //!   [`wait_heuristic`], [`accumulate`]; [`supervisor`] is the restart policy.
 //! - Entry point: [`master::start`] → [`master::MasterHandle`]; frames leave through a
-//!   [`sink::FrameSink`]; [`stats`] and [`asset_store`] support them.
+//!   [`sink::FrameSink`]; [`stats`], [`edit_latency`] and [`asset_store`] support them.
 
 pub mod accumulate;
 pub mod announcer;
@@ -27,6 +27,7 @@ pub mod counted_io;
 pub mod discovery;
 pub mod display;
 pub mod edit;
+pub mod edit_latency;
 pub mod frame_table;
 pub mod integrity;
 pub mod job_queue;

@@ -26,7 +26,7 @@ use crate::edit::{Edit, EditError};
 use crate::frame_table::ConnId;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
 use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
-use crate::scene_holder::{ApplyEdit, CurrentState, PlayScript, SceneHolder};
+use crate::scene_holder::{ApplyEdit, CurrentState, EditMade, PlayScript, SceneHolder};
 use crate::scheduler::{Scheduler, SchedulerLinks};
 use crate::sets::SetTable;
 use crate::sink::FrameSink;
@@ -67,6 +67,12 @@ pub struct MasterConfig {
     pub restart: RestartPolicy,
     /// Announce this master on the LAN (`discovery`); `None`: stay quiet.
     pub announce: Option<AnnounceConfig>,
+    /// Frames the display hands to the sink ahead of it (1 for the least latency, 2 to
+    /// keep a fast sink busy: [`crate::display::DEFAULT_SINK_IN_FLIGHT`]).
+    pub sink_in_flight: usize,
+    /// A state change discards the queued jobs of older versions and the display does
+    /// not wait for their held ones (default); `false` only to measure what that gains.
+    pub discard_stale_jobs: bool,
 }
 
 impl MasterConfig {
@@ -86,6 +92,8 @@ impl MasterConfig {
             initial_frame_time: DEFAULT_INITIAL_FRAME_TIME,
             restart: RestartPolicy::default(),
             announce: None,
+            discard_stale_jobs: true,
+            sink_in_flight: crate::display::DEFAULT_SINK_IN_FLIGHT,
         }
     }
 }
@@ -239,6 +247,7 @@ fn wire(
         initial_frame_time: config.initial_frame_time,
         max_frames: config.max_frames,
         policy: config.restart,
+        sink_in_flight: config.sink_in_flight,
     };
     display_ctx.run(Display::new(
         display_config,
@@ -258,15 +267,19 @@ fn wire(
         frames_to: assembler.clone().recipient(),
         handouts_to: assembler.clone().recipient(),
         abandoned_to: display.clone().recipient(),
+        outdated_to: display.clone().recipient(),
     };
-    scheduler_ctx.run(Scheduler::new(
-        config.sets.sets,
-        threshold,
-        state.clone(),
-        links,
-        counters.clone(),
-        config.restart,
-    ));
+    scheduler_ctx.run(
+        Scheduler::new(
+            config.sets.sets,
+            threshold,
+            state.clone(),
+            links,
+            counters.clone(),
+            config.restart,
+        )
+        .with_stale_discard(config.discard_stale_jobs),
+    );
     let scene =
         SceneHolder::new(state, scheduler.clone().recipient(), counters.clone(), config.restart)
             .start();
@@ -312,6 +325,12 @@ impl MasterHandle {
     /// The workers connected now, with their rates.
     pub fn workers(&self) -> Vec<crate::workers::WorkerInfo> {
         self.counters.workers_table.list()
+    }
+
+    /// Applies an edit that happened at `at` (an input event), without waiting: the
+    /// window's path. The edit-to-display latency is measured from `at`.
+    pub fn edit_made(&self, edit: Edit, at: Instant) {
+        self.scene.do_send(EditMade { edit, at });
     }
 
     /// Plays an interaction script from now on.

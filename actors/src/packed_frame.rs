@@ -40,6 +40,11 @@ impl PackedFrame {
         self.results[set as usize] = Some(words);
     }
 
+    /// The pixel sets the frame is made of.
+    pub fn set_table(&self) -> &Arc<SetTable> {
+        &self.sets
+    }
+
     /// Whether set `set`'s words are in.
     pub fn contains(&self, set: SetNo) -> bool {
         self.results.get(set as usize).is_some_and(Option::is_some)

@@ -3,7 +3,7 @@
 //! scheduler. It is the only place a [`StateVersion`] is created.
 
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
@@ -17,6 +17,14 @@ use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, Restar
 #[derive(Message, Debug, Clone)]
 #[rtype(result = "Result<StateVersion, EditError>")]
 pub struct ApplyEdit(pub Edit);
+
+/// Apply an edit made at `at` (the window's input event); nothing is answered.
+#[derive(Message, Debug, Clone)]
+#[rtype(result = "()")]
+pub struct EditMade {
+    pub edit: Edit,
+    pub at: Instant,
+}
 
 /// Apply each edit at its time after now.
 #[derive(Message)]
@@ -46,12 +54,14 @@ impl SceneHolder {
         Self { state, changes_to, counters, restarts: RestartTracker::new(policy) }
     }
 
-    fn apply(&mut self, edit: &Edit) -> Result<StateVersion, EditError> {
+    /// Applies an edit that happened at `at` (logged for the edit-to-display latency).
+    fn apply(&mut self, edit: &Edit, at: Instant) -> Result<StateVersion, EditError> {
         let mut next = (*self.state).clone();
         apply(&mut next, edit)?;
         next.version = self.state.version + 1;
         let version = next.version;
         self.state = Arc::new(next);
+        self.counters.edits.applied(version, at);
         self.changes_to.do_send(StateChanged(self.state.clone()));
         Ok(version)
     }
@@ -64,7 +74,7 @@ impl Actor for SceneHolder {
 impl Handler<ApplyEdit> for SceneHolder {
     type Result = Result<StateVersion, EditError>;
     fn handle(&mut self, msg: ApplyEdit, ctx: &mut Context<Self>) -> Self::Result {
-        match contain(|| self.apply(&msg.0)) {
+        match contain(|| self.apply(&msg.0, Instant::now())) {
             Ok(r) => r,
             Err(panic) => {
                 let counters = self.counters.clone();
@@ -84,10 +94,24 @@ impl Handler<PlayScript> for SceneHolder {
     type Result = ();
     fn handle(&mut self, msg: PlayScript, ctx: &mut Context<Self>) {
         for (at, edit) in msg.0 {
-            ctx.run_later(at, move |act, _| match act.apply(&edit) {
+            ctx.run_later(at, move |act, _| match act.apply(&edit, Instant::now()) {
                 Ok(version) => tracing::debug!(version, ?edit, "script edit applied"),
                 Err(e) => tracing::warn!(cause = %e, ?edit, "script edit refused"),
             });
+        }
+    }
+}
+
+impl Handler<EditMade> for SceneHolder {
+    type Result = ();
+    fn handle(&mut self, msg: EditMade, ctx: &mut Context<Self>) {
+        match contain(|| self.apply(&msg.edit, msg.at)) {
+            Ok(Ok(version)) => tracing::trace!(version, "edit applied"),
+            Ok(Err(e)) => tracing::warn!(cause = %e, edit = ?msg.edit, "edit refused"),
+            Err(panic) => {
+                let counters = self.counters.clone();
+                after_panic("scene holder", &panic, &mut self.restarts, &counters, ctx);
+            }
         }
     }
 }

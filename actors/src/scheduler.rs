@@ -3,7 +3,11 @@
 //! It keeps the [`JobQueue`] topped up with whole frames of the latest scene state,
 //! serves workers' credits in arrival order, tells the frame assembler about every new
 //! frame and every hand-out *before* the job leaves (so a result can never overtake
-//! its bookkeeping), and drops queued jobs of frames the display has passed.
+//! its bookkeeping), and drops queued jobs of frames the display has passed. When the
+//! scene state changes it discards the queued jobs of older versions at once and tells
+//! the display not to wait for the jobs of those frames still held by workers
+//! ([`FramesOutdated`]), so that the first frame of the new state is not queued behind
+//! a view the user has left (the edit-to-display latency).
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -72,6 +76,7 @@ pub struct SchedulerLinks {
     pub frames_to: Recipient<FrameScheduled>,
     pub handouts_to: Recipient<JobsHandedOut>,
     pub abandoned_to: Recipient<FramesAbandoned>,
+    pub outdated_to: Recipient<FramesOutdated>,
 }
 
 /// To the display: frames before `before` lost their queued jobs (the scheduler
@@ -80,6 +85,16 @@ pub struct SchedulerLinks {
 #[derive(Message, Debug, Clone, Copy)]
 #[rtype(result = "()")]
 pub struct FramesAbandoned {
+    pub before: FrameNo,
+}
+
+/// To the display: frames before `before` were made with an outdated scene state; their
+/// queued jobs were discarded, so only results already held by workers can still come.
+/// The display shows such a frame at once with what it has (or skips it when empty)
+/// instead of waiting for them.
+#[derive(Message, Debug, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct FramesOutdated {
     pub before: FrameNo,
 }
 
@@ -94,6 +109,9 @@ pub struct Scheduler {
     links: SchedulerLinks,
     counters: Arc<Counters>,
     restarts: RestartTracker,
+    /// Discard queued jobs of outdated state versions on a state change (the default;
+    /// off only to measure what it gains).
+    discard_stale: bool,
 }
 
 impl Scheduler {
@@ -106,6 +124,7 @@ impl Scheduler {
         policy: RestartPolicy,
     ) -> Self {
         Self {
+            discard_stale: true,
             sets,
             threshold,
             queue: JobQueue::new(sets, threshold, state, 0),
@@ -114,6 +133,14 @@ impl Scheduler {
             counters,
             restarts: RestartTracker::new(policy),
         }
+    }
+}
+
+impl Scheduler {
+    /// Whether a state change discards the queued jobs of older versions (default: yes).
+    pub fn with_stale_discard(mut self, discard: bool) -> Self {
+        self.discard_stale = discard;
+        self
     }
 }
 
@@ -128,7 +155,18 @@ impl Actor for Scheduler {
 impl Handler<StateChanged> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: StateChanged, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| s.queue.set_state(msg.0));
+        self.guarded(ctx, |s| {
+            s.queue.set_state(msg.0);
+            if !s.discard_stale {
+                return;
+            }
+            let discarded = s.queue.discard_outdated();
+            Counters::add(&s.counters.jobs_discarded_stale, discarded as u64);
+            // Every frame scheduled so far is of an older version.
+            s.links.outdated_to.do_send(FramesOutdated { before: s.queue.next_frame() });
+            tracing::debug!(discarded, "queued jobs of an outdated state discarded");
+            s.dispatch();
+        });
     }
 }
 

@@ -12,8 +12,10 @@ use std::thread::JoinHandle;
 use glam::Vec3;
 use thiserror::Error;
 
+use crate::frame_table::ConnId;
 use crate::packed_frame::PackedFrame;
-use crate::protocol::FrameNo;
+use crate::protocol::{FrameNo, SetNo};
+use crate::sets::SetTable;
 use crate::state::SceneState;
 use crate::stats::FrameStats;
 use crate::supervisor::contain;
@@ -28,7 +30,35 @@ pub struct ShownFrame {
     pub current: Vec<Vec3>,
     /// Pixels covered by a result of this frame.
     pub current_mask: Vec<bool>,
+    /// Which worker rendered which pixels (the `workers` view).
+    pub owners: Owners,
     pub stats: FrameStats,
+}
+
+/// Which connection's result covers each set of a frame.
+#[derive(Clone, Debug, Default)]
+pub struct Owners {
+    /// Per set: the connection whose result was accepted.
+    pub per_set: Vec<Option<ConnId>>,
+    /// The frame's pixel sets (`None`: unknown, every pixel is unowned).
+    pub sets: Option<Arc<SetTable>>,
+}
+
+impl Owners {
+    /// The owner of each of the frame's `n` pixels (`None` for holes).
+    pub fn per_pixel(&self, n: usize) -> Vec<Option<ConnId>> {
+        let mut out = vec![None; n];
+        let Some(sets) = &self.sets else { return out };
+        for (set, owner) in self.per_set.iter().enumerate() {
+            let Some(owner) = owner else { continue };
+            for &p in sets.pixels(set as SetNo).unwrap_or(&[]) {
+                if let Some(slot) = out.get_mut(p as usize) {
+                    *slot = Some(*owner);
+                }
+            }
+        }
+        out
+    }
 }
 
 /// A shown frame on its way to the sink thread, its results still packed: unpacking
@@ -38,6 +68,8 @@ pub struct PackedShownFrame {
     pub frame: FrameNo,
     pub state: Arc<SceneState>,
     pub results: PackedFrame,
+    /// Per set, the connection whose result was accepted.
+    pub owners: Vec<Option<ConnId>>,
     pub stats: FrameStats,
 }
 
@@ -45,11 +77,13 @@ impl PackedShownFrame {
     /// The frame with per-pixel radiance and coverage.
     pub fn unpack(self) -> ShownFrame {
         let (current, current_mask) = self.results.unpack();
+        let owners = Owners { per_set: self.owners, sets: Some(self.results.set_table().clone()) };
         ShownFrame {
             frame: self.frame,
             state: self.state,
             current,
             current_mask,
+            owners,
             stats: self.stats,
         }
     }

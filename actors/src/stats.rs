@@ -7,6 +7,7 @@
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use serde::Serialize;
 
@@ -30,6 +31,8 @@ pub struct Counters {
     pub results_accepted: AtomicU64,
     /// Jobs handed out by the scheduler.
     pub jobs_handed_out: AtomicU64,
+    /// Queued jobs discarded because the scene state changed before they were handed out.
+    pub jobs_discarded_stale: AtomicU64,
     /// Hand-outs of a (frame, set) that had been handed out before; the no-redundancy
     /// invariant (at most S jobs per frame) says this stays 0.
     pub jobs_handed_twice: AtomicU64,
@@ -42,6 +45,8 @@ pub struct Counters {
     pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
     /// Connected workers, for the status panel.
     pub workers_table: crate::workers::WorkerTable,
+    /// Edits not yet shown, for the edit-to-display latency.
+    pub edits: crate::edit_latency::EditLog,
 }
 
 impl Counters {
@@ -104,6 +109,9 @@ pub struct FrameStats {
     pub i: f64,
     /// Time from the start of this frame to its display.
     pub wait_ms: f64,
+    /// When the display showed it, in milliseconds since the master started (frame
+    /// periods and edit latencies line up on this clock).
+    pub shown_at_ms: f64,
     /// Frames skipped (Q_min not reached by I_max) since the previous shown frame.
     pub skipped: u64,
     pub dropped_late: u64,
@@ -121,6 +129,25 @@ pub struct FrameStats {
     pub shown: u64,
     /// Frames since the scene state last changed whose results are accumulated.
     pub accumulated_frames: u32,
+    /// When the edits this frame shows first happened (not written: instants have no
+    /// meaning outside this process).
+    #[serde(skip)]
+    pub edits_at: Vec<Instant>,
+    /// Edit-to-display latency of each of those edits, in milliseconds: from the edit
+    /// (input event or scripted time) to the moment this frame was shown.
+    pub edit_latency_ms: Vec<f64>,
+}
+
+impl FrameStats {
+    /// Sets `edit_latency_ms` for a frame shown at `now` (the sink calls it when the
+    /// frame is really shown; the display calls it when it hands the frame over).
+    pub fn stamp_edit_latency(&mut self, now: Instant) {
+        self.edit_latency_ms = self
+            .edits_at
+            .iter()
+            .map(|at| now.saturating_duration_since(*at).as_secs_f64() * 1e3)
+            .collect();
+    }
 }
 
 #[cfg(test)]

@@ -1,6 +1,8 @@
-//! The table of connected workers the window's status panel lists: name, cores, jobs per
-//! second, last seen, and whether (and why) a worker is paused. Connection actors write
-//! their own row (join, each accepted result, pause, resume, end); readers get a snapshot. Rows exist only for live connections, so the table is
+//! The table of connected workers the window's status panel lists: name, host, cores,
+//! jobs per second, jobs done, late results, mean render time per job, last seen, and
+//! whether (and why) a worker is paused. Connection actors write their own row (join, each
+//! accepted result, pause, resume, end), the assembler counts late results; readers get a
+//! snapshot. Rows exist only for live connections, so the table is
 //! bounded by the connection cap.
 
 use std::collections::BTreeMap;
@@ -25,6 +27,12 @@ pub struct WorkerInfo {
     pub jobs_per_second: f64,
     /// Results since it joined.
     pub jobs: u64,
+    /// Its results that came back after their frame was shown (dropped, never used).
+    pub late: u64,
+    /// Mean render time per job as the worker reports it (0 before its first result).
+    pub mean_job_time: Duration,
+    /// The host it connects from (IP address).
+    pub host: String,
     /// Time since its last message.
     pub last_seen: Duration,
     /// Why it is paused (its desk's owner is active); `None` while it takes jobs.
@@ -53,6 +61,11 @@ struct Row {
     rate: f64,
     last_seen: Instant,
     paused: Option<PauseReason>,
+    late: u64,
+    /// Sum and count of reported render times.
+    render_us: u64,
+    timed_jobs: u64,
+    host: String,
 }
 
 /// Live workers by connection.
@@ -74,8 +87,34 @@ impl WorkerTable {
             rate: 0.0,
             last_seen: now,
             paused: None,
+            late: 0,
+            render_us: 0,
+            timed_jobs: 0,
+            host: String::new(),
         };
         self.lock().insert(id, row);
+    }
+
+    /// The worker connects from `host`.
+    pub fn located(&self, id: ConnId, host: &str) {
+        if let Some(row) = self.lock().get_mut(&id) {
+            row.host = host.to_owned();
+        }
+    }
+
+    /// One of its results took `render_us` microseconds to render.
+    pub fn timed(&self, id: ConnId, render_us: u64) {
+        if let Some(row) = self.lock().get_mut(&id) {
+            row.render_us = row.render_us.saturating_add(render_us);
+            row.timed_jobs += 1;
+        }
+    }
+
+    /// One of its results came back too late for its frame.
+    pub fn late(&self, id: ConnId) {
+        if let Some(row) = self.lock().get_mut(&id) {
+            row.late += 1;
+        }
     }
 
     /// A message came from the worker; `results` of them were accepted results.
@@ -141,6 +180,11 @@ impl WorkerTable {
                     cores: r.cores,
                     jobs_per_second: if silent { 0.0 } else { r.rate },
                     jobs: r.jobs,
+                    late: r.late,
+                    mean_job_time: Duration::from_micros(
+                        r.render_us.checked_div(r.timed_jobs).unwrap_or(0),
+                    ),
+                    host: r.host.clone(),
                     last_seen: now - r.last_seen,
                     paused: r.paused.clone(),
                 }
@@ -164,9 +208,17 @@ mod tests {
         t.joined(1, "b", 1);
         t.heard(3, 2);
         t.heard(9, 5); // unknown connection: ignored
+        t.located(3, "10.0.0.7");
+        t.timed(3, 1000);
+        t.timed(3, 3000);
+        t.late(3);
+        t.late(9);
         let list = t.list();
         assert_eq!(list.iter().map(|w| w.id).collect::<Vec<_>>(), vec![1, 3]);
         assert_eq!((list[1].name.as_str(), list[1].cores, list[1].jobs), ("a", 4, 2));
+        assert_eq!((list[1].host.as_str(), list[1].late), ("10.0.0.7", 1));
+        assert_eq!(list[1].mean_job_time, Duration::from_millis(2));
+        assert_eq!((list[0].late, list[0].mean_job_time), (0, Duration::ZERO));
         t.left(3);
         assert_eq!(t.list().len(), 1);
     }

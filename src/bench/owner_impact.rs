@@ -26,6 +26,7 @@ use super::busy_loop::BusyLoop;
 use super::master::CountingSink;
 use crate::children::Children;
 use crate::master_cmd::{self, MasterOptions};
+use crate::scene::SceneSource;
 use crate::worker::priority::{self, Priority};
 
 /// How long a worker may take to return its first results.
@@ -121,7 +122,7 @@ fn measure(
 /// machine), frames counted and dropped.
 fn start_master(opts: &OwnerImpactOptions) -> anyhow::Result<MasterHandle> {
     let options = MasterOptions {
-        scene: opts.scene.clone(),
+        scene: SceneSource::find_with_assets(&opts.scene, &opts.asset_dirs)?.0,
         asset_dirs: opts.asset_dirs.clone(),
         listen: ([127, 0, 0, 1], 0).into(),
         sets: gridlight_actors::protocol::SetsConfig {
@@ -135,6 +136,8 @@ fn start_master(opts: &OwnerImpactOptions) -> anyhow::Result<MasterHandle> {
         announce: Default::default(),
         script: None,
         frames: None,
+        keep_stale_jobs: false,
+        sink_in_flight: gridlight_actors::display::DEFAULT_SINK_IN_FLIGHT,
         headless: Default::default(),
     };
     let prepared = master_cmd::prepare(&options)?;

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use tracing::info;
 
@@ -21,9 +21,8 @@ use super::GlobalArgs;
 use crate::children::Children;
 use crate::headless::HeadlessOptions;
 use crate::master_cmd::{self, AnnounceOptions, MasterOptions};
+use crate::scene::SceneSource;
 
-/// The scene shown when none is named.
-pub const DEFAULT_SCENE: &str = "scenes/cornell-box.toml";
 /// Where a headless demo writes when `--out` is not given.
 pub const DEFAULT_OUT: &str = "gridlight-demo";
 /// Frames a headless demo shows before it ends.
@@ -32,7 +31,7 @@ pub const DEFAULT_FRAMES: u64 = 30;
 /// Arguments of `gridlight demo`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// The scene file (default: the Cornell box).
+    /// A scene file or the name of a built-in scene (default: the built-in Cornell box).
     pub scene: Option<PathBuf>,
     /// Local worker processes (default: one per core).
     #[arg(long)]
@@ -52,6 +51,14 @@ pub struct Args {
     /// Pixel sets per frame.
     #[arg(long, default_value_t = DEFAULT_SETS)]
     pub sets: u32,
+    /// Keep queued jobs of outdated scene states when the scene changes (the old
+    /// scheduler; to measure the edit-to-display latency without the discard).
+    #[arg(long, hide = true)]
+    pub keep_stale_jobs: bool,
+    /// Frames handed to the frame sink ahead of it (1: least latency; 2 was the default
+    /// before; to measure the difference).
+    #[arg(long, hide = true, default_value_t = 1)]
+    pub sink_in_flight: usize,
     #[command(flatten)]
     pub pacing: PacingArgs,
     #[command(flatten)]
@@ -64,13 +71,10 @@ pub struct Args {
 
 /// Runs `gridlight demo`.
 pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
-    let scene = args.scene.clone().unwrap_or_else(|| PathBuf::from(DEFAULT_SCENE));
-    if !scene.is_file() {
-        bail!(
-            "scene file {} not found (run the demo from the repository root or name a scene)",
-            scene.display()
-        );
-    }
+    let scene = match &args.scene {
+        Some(arg) => SceneSource::find_with_assets(arg, &global.assets)?.0,
+        None => SceneSource::default_builtin(),
+    };
     let windowed = !args.headless && crate::window::display_available();
     let workers = args
         .workers
@@ -97,6 +101,8 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         announce: AnnounceOptions { enabled: !args.no_announce, to: None, name: None },
         script: args.script.clone(),
         frames: if windowed { args.frames } else { Some(args.frames.unwrap_or(DEFAULT_FRAMES)) },
+        keep_stale_jobs: args.keep_stale_jobs,
+        sink_in_flight: args.sink_in_flight,
         headless: HeadlessOptions {
             out_dir: Some(args.out.clone()),
             stats: Some(args.out.join("stats.jsonl")),
@@ -132,26 +138,29 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
     };
     let outcome = if windowed {
         let window = crate::window::WindowOptions {
-            title: format!("gridlight demo: {}", opts.scene.display()),
+            title: format!("gridlight demo: {}", opts.scene.name()),
             view: args.display.view,
             shot_dir: args.out.clone(),
             ..crate::window::WindowOptions::default()
         };
         master_cmd::run_window(&opts, window, start_workers, Some(Box::new(stop_workers.clone())))
-            .map(|()| None)
     } else {
-        master_cmd::run(&opts, start_workers).map(Some)
+        master_cmd::run(&opts, start_workers)
     };
     stop_workers();
     let _ = std::fs::remove_file(&secret_file);
-    if let Some(report) = outcome? {
-        println!(
-            "demo: {} frames shown ({} skipped) by {workers} worker processes; frames and stats in {}",
-            report.shown,
-            report.skipped,
-            args.out.display()
-        );
-    }
+    let report = outcome?;
+    // The same summary however the demo ended: window closed, Ctrl-C, SIGTERM, frame limit.
+    println!(
+        "demo: {} frames shown ({} skipped) by {workers} worker processes; {}",
+        report.shown,
+        report.skipped,
+        if windowed {
+            format!("screenshots and scripts in {}", args.out.display())
+        } else {
+            format!("frames and stats in {}", args.out.display())
+        }
+    );
     Ok(())
 }
 

@@ -11,7 +11,7 @@ use super::GlobalArgs;
 use crate::headless::HeadlessOptions;
 use crate::master_cmd::{self, AnnounceOptions, MasterOptions, DEFAULT_LISTEN};
 use crate::reconstruct::{Backend, ReconstructParams};
-use crate::scene::PacingOverrides;
+use crate::scene::{PacingOverrides, SceneSource};
 use crate::view::View;
 
 /// Sets per frame when `--sets` is not given (DESIGN.md decision 1).
@@ -145,7 +145,7 @@ impl AnnounceArgs {
 /// Arguments of `gridlight master`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// The scene file (TOML).
+    /// A scene file (TOML) or the name of a built-in scene (`gridlight scenes` lists them).
     pub scene: PathBuf,
     /// Address to listen on; port 0 picks a free port (the chosen address is printed).
     #[arg(long, default_value = DEFAULT_LISTEN)]
@@ -202,7 +202,7 @@ impl Args {
             bail!("--dump-current needs --out DIR");
         }
         Ok(MasterOptions {
-            scene: self.scene.clone(),
+            scene: SceneSource::find_with_assets(&self.scene, &global.assets)?.0,
             asset_dirs: global.assets.clone(),
             listen: self.listen,
             sets: SetsConfig { sets: self.sets, partition: self.partition.into() },
@@ -213,6 +213,8 @@ impl Args {
             announce: self.announce.options(),
             script: self.script.clone(),
             frames: self.frames,
+            keep_stale_jobs: false,
+            sink_in_flight: 1,
             headless: HeadlessOptions {
                 out_dir: self.out.clone(),
                 stats: self.stats.clone(),
@@ -230,12 +232,14 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
     let opts = args.options(global)?;
     if !args.headless && crate::window::display_available() {
         let window = crate::window::WindowOptions {
-            title: format!("gridlight master: {}", opts.scene.display()),
+            title: format!("gridlight master: {}", opts.scene.name()),
             view: args.display.view,
             shot_dir: args.out.clone().unwrap_or_else(|| PathBuf::from(".")),
             ..crate::window::WindowOptions::default()
         };
-        return master_cmd::run_window(&opts, window, |_| Ok(()), None);
+        let report = master_cmd::run_window(&opts, window, |_| Ok(()), None)?;
+        tracing::info!(shown = report.shown, skipped = report.skipped, "master finished");
+        return Ok(());
     }
     let report = master_cmd::run(&opts, |_| Ok(()))?;
     tracing::info!(shown = report.shown, skipped = report.skipped, "master finished");

@@ -17,6 +17,7 @@ pub mod demo;
 pub mod eval;
 pub mod master;
 pub mod render;
+pub mod scenes;
 pub mod soak;
 pub mod worker;
 pub mod worker_file;
@@ -43,6 +44,8 @@ pub struct GlobalArgs {
 /// The subcommands (each engineer adds theirs here, in its own module).
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// List the built-in scenes and the scene files found on the asset search path.
+    Scenes(scenes::Args),
     /// Render a scene file to a PNG (tonemapped sRGB) or EXR (linear) image on all local cores.
     Render(render::Args),
     /// Evaluations that reproduce the paper's findings; JSON lines with `--json`.
@@ -64,6 +67,7 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(args) => render::run(args, &cli.global),
+        Command::Scenes(args) => scenes::run(args, &cli.global),
         Command::Soak(args) => soak::run(args, &cli.global),
         Command::Eval(cmd) => eval::run(cmd, &cli.global),
         Command::Bench(args) => bench::run(args, &cli.global),

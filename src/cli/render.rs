@@ -18,9 +18,9 @@ use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::GlobalArgs;
-use crate::image_io::{self, ImageFormat};
+use crate::image_io::{self, ClaimedOutput};
 use crate::render::{render_pixels, PixelSample, RenderScene};
-use crate::scene::{self, AssetSearchPath};
+use crate::scene::{self, SceneSource};
 
 /// Samples per pixel when `--spp` is not given.
 pub const DEFAULT_SPP: u32 = 64;
@@ -30,7 +30,7 @@ pub const BLOCK_PIXELS: usize = 256;
 /// Arguments of `gridlight render`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
-    /// The scene file (TOML).
+    /// A scene file (TOML) or the name of a built-in scene (`gridlight scenes` lists them).
     pub scene: PathBuf,
     /// Samples per pixel.
     #[arg(long, default_value_t = DEFAULT_SPP)]
@@ -51,8 +51,8 @@ pub struct Args {
 
 /// Runs `gridlight render`.
 pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
-    // Check the cheap things before loading anything.
-    ImageFormat::from_path(&args.out)?;
+    // Check the cheap things before loading anything, the output file first.
+    let out = ClaimedOutput::claim(&args.out)?;
     if args.spp == 0 {
         bail!("--spp must be at least 1");
     }
@@ -61,15 +61,15 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         Some(t) => t,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    let search = AssetSearchPath::from_env(&global.assets, Some(&args.scene));
+    let (source, search) = SceneSource::find_with_assets(&args.scene, &global.assets)?;
     let started = Instant::now();
-    let loaded = scene::load(&args.scene, &search)?;
+    let loaded = scene::load_source(&source, &search)?;
     let mut state = loaded.state;
     state.render.spp = 1;
     let render_scene = RenderScene::new(Arc::new(loaded.assets), &state)
-        .with_context(|| format!("cannot render `{}`", args.scene.display()))?;
+        .with_context(|| format!("cannot render `{source}`"))?;
     tracing::info!(
-        scene = %args.scene.display(),
+        scene = %source,
         width = state.resolution.width,
         height = state.resolution.height,
         spp = args.spp,
@@ -90,6 +90,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         &pixels,
         args.exposure,
     )?;
+    out.keep();
     tracing::info!(
         out = %args.out.display(),
         seconds,

@@ -255,6 +255,7 @@ mod tests {
             frame,
             state: Arc::new(state),
             current_mask: values.iter().map(|v| *v != Vec3::ZERO).collect(),
+            owners: Default::default(),
             current: values,
             stats: FrameStats { frame, jobs_back, jobs_total: 4, ..Default::default() },
         }

@@ -8,8 +8,10 @@
 //! - [`manifest`]: every file a state needs, hashed, for workers to fetch.
 //! - [`search`]: the asset search path and the [`AssetResolver`] trait.
 //! - [`error`]: [`SceneError`], which names the file, the key and the problem.
+//! - [`builtin`]: scenes compiled into the binary, and [`SceneSource`] (file or built-in).
 
 pub mod build;
+pub mod builtin;
 pub mod description;
 pub mod error;
 pub mod loader;
@@ -24,6 +26,7 @@ use std::path::Path;
 use gridlight_actors::state::SceneState;
 
 use crate::assets::Assets;
+pub use builtin::SceneSource;
 pub use description::{DisplayDesc, SceneFile};
 pub use error::{AssetError, Problem, SceneError};
 pub use loader::load_assets;
@@ -44,10 +47,18 @@ pub struct LoadedScene {
 
 /// Reads, parses and builds the scene file at `path`, finding assets through `resolver`.
 pub fn load(path: &Path, resolver: &dyn AssetResolver) -> Result<LoadedScene, SceneError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| SceneError::new(path, "(file)", Problem::Read(e)))?;
-    let file = parse(path, &text)?;
-    build::build(&file, path, resolver)
+    load_source(&SceneSource::File(path.to_path_buf()), resolver)
+}
+
+/// Reads, parses and builds a scene file or a built-in scene.
+pub fn load_source(
+    source: &SceneSource,
+    resolver: &dyn AssetResolver,
+) -> Result<LoadedScene, SceneError> {
+    let text = source.text()?;
+    let label = source.label();
+    let file = parse(&label, &text)?;
+    build::build(&file, &label, resolver)
 }
 
 /// Parses scene TOML; `path` is only used in error messages.

@@ -26,8 +26,11 @@ use super::layout::{self, Rect};
 use super::manipulate::{self, Nudge};
 use super::panel::{self, PanelAction, PanelModel, PanelSettings};
 use super::record::Recorder;
-use super::status::{FpsMeter, StatusView};
+use super::status::{FpsMeter, LatencyMeter, StatusView};
 use super::{Composed, Session, UserEvent, WindowOptions};
+
+/// Environment variable naming a file the window writes its panel layout to (tests).
+pub const PANEL_PROBE_ENV: &str = "GRIDLIGHT_PANEL_PROBE";
 
 /// Pixels the mouse may move between press and release and still count as a click.
 const CLICK_SLOP: f32 = 4.0;
@@ -84,6 +87,7 @@ pub struct App {
     settings: PanelSettings,
     status: StatusView,
     fps: FpsMeter,
+    latency: LatencyMeter,
     /// The newest composed frame, kept for redraws, screenshots and picking.
     shown: Option<Composed>,
     /// Where the picture was drawn last, in physical pixels.
@@ -128,6 +132,7 @@ impl App {
             settings,
             status: StatusView::default(),
             fps: FpsMeter::new(Duration::from_secs(2)),
+            latency: LatencyMeter::default(),
             shown: None,
             picture_rect: None,
             message: String::new(),
@@ -137,12 +142,18 @@ impl App {
 
     fn create_surface(&mut self, event_loop: &ActiveEventLoop) -> Result<(), String> {
         let res = self.scene.resolution;
+        let monitor =
+            event_loop.primary_monitor().or_else(|| event_loop.available_monitors().next());
+        let scale = monitor.as_ref().map_or(1.0, |m| m.scale_factor()) as f32;
+        let screen = monitor.map(|m| (m.size().width, m.size().height));
+        let (width, height) = layout::initial_window_size(
+            (res.width, res.height),
+            (panel::PANEL_WIDTH * scale) as u32,
+            screen,
+        );
         let attributes = Window::default_attributes()
             .with_title(self.options.title.clone())
-            .with_inner_size(PhysicalSize::new(
-                res.width + (panel::PANEL_WIDTH as u32) + 16,
-                res.height.max(560),
-            ));
+            .with_inner_size(PhysicalSize::new(width, height));
         let window = Arc::new(
             event_loop
                 .create_window(attributes)
@@ -178,7 +189,7 @@ impl App {
     /// Queues an edit and applies it to the window's copy of the state.
     fn edit(&mut self, edit: SceneEdit) {
         match edit.apply(&mut self.scene) {
-            Ok(()) => self.edits.push(edit),
+            Ok(()) => self.edits.push(edit, Instant::now()),
             Err(err) => tracing::warn!(cause = %err, "edit ignored"),
         }
     }
@@ -281,13 +292,15 @@ impl App {
             | KeyCode::Digit2
             | KeyCode::Digit3
             | KeyCode::Digit4
-            | KeyCode::Digit5 => {
+            | KeyCode::Digit5
+            | KeyCode::Digit6 => {
                 let i = match code {
                     KeyCode::Digit1 => 0,
                     KeyCode::Digit2 => 1,
                     KeyCode::Digit3 => 2,
                     KeyCode::Digit4 => 3,
-                    _ => 4,
+                    KeyCode::Digit5 => 4,
+                    _ => 5,
                 };
                 self.settings.view = crate::view::View::ALL[i];
             }
@@ -345,6 +358,28 @@ impl App {
         self.recorder.set_recording(self.settings.recording, Instant::now());
     }
 
+    /// Writes the panel's layout to `$GRIDLIGHT_PANEL_PROBE` (JSON) when set: how the
+    /// window tests check that every section can be reached and nothing is cut off,
+    /// at whatever size the window got.
+    fn probe_panel(&self, layout: panel::PanelLayout, s: &Surface) {
+        let Some(path) = std::env::var_os(PANEL_PROBE_ENV) else { return };
+        let size = s.window.inner_size();
+        let probe = serde_json::json!({
+            "window": [size.width, size.height],
+            "last_section_visible": layout.last_section_visible(),
+            "clipped_horizontally": layout.clipped_horizontally(),
+            "layout": layout,
+        });
+        // Written whole, then renamed, so a reader never sees half a file.
+        let tmp = std::path::PathBuf::from(&path).with_extension("tmp");
+        if std::fs::write(&tmp, probe.to_string())
+            .and_then(|()| std::fs::rename(&tmp, &path))
+            .is_err()
+        {
+            tracing::warn!("cannot write the panel probe");
+        }
+    }
+
     /// Fly movement for the time since the last step, while movement keys are held.
     fn fly_step(&mut self) {
         let now = Instant::now();
@@ -359,17 +394,25 @@ impl App {
     fn redraw(&mut self) {
         self.fly_step();
         let now = Instant::now();
-        for edit in self.edits.drain() {
+        for (edit, at) in self.edits.drain() {
             self.recorder.record(&edit, now);
-            self.session.edit(edit);
+            self.session.edit(edit, at);
         }
         self.session.set_view(self.settings.view);
         if let Some(frame) = self.frames.take() {
-            self.fps.tick(Instant::now());
+            let now = Instant::now();
+            self.fps.tick(now);
+            // Drawn now: the edits this frame shows first end their latency here. Edits of
+            // a frame replaced before it was drawn are not counted (a headless run's
+            // stats.jsonl has every edit).
+            for at in &frame.status.edits_at {
+                self.latency.record(now.saturating_duration_since(*at).as_secs_f32() * 1e3);
+            }
             self.status = StatusView {
                 fps: self.fps.fps(),
                 frames_replaced: self.frames.replaced(),
                 adapter: std::mem::take(&mut self.status.adapter),
+                edit_latency_ms: self.latency.summary(),
                 ..frame.status.clone()
             };
             if let Some(s) = &mut self.surface {
@@ -399,9 +442,11 @@ impl App {
             message: &self.message,
         };
         let settings = &mut self.settings;
+        let mut panel_layout = panel::PanelLayout::default();
         let output = self.egui.run_ui(raw_input, |ui| {
-            actions = panel::show(ui, &model, settings);
+            (actions, panel_layout) = panel::show(ui, &model, settings);
         });
+        self.probe_panel(panel_layout, s);
         s.egui_state.handle_platform_output(&s.window, output.platform_output);
         let ppp = output.pixels_per_point;
         let (width, height) = (s.gpu.config.width, s.gpu.config.height);

@@ -5,6 +5,8 @@
 //! once, without waiting for the master to echo a new version; each edit also goes to the
 //! master, which makes the new state version the workers render.
 
+use std::time::Instant;
+
 use glam::Vec3;
 use gridlight_actors::state::{
     Camera, Environment, Light, Material, MaterialId, SceneState, Transform,
@@ -92,23 +94,27 @@ impl SceneEdit {
 
 /// Edits waiting to be sent to the master. A mouse drag produces an edit per input event;
 /// every edit the master receives makes a new scene state (and restarts accumulation), so
-/// the window sends at most one edit per target per drawn frame: the newest.
+/// the window sends at most one edit per target per drawn frame: the newest. Each keeps
+/// the instant of the first input event it stands for, so that the edit-to-display
+/// latency counts from there.
 #[derive(Clone, Debug, Default)]
 pub struct EditQueue {
-    pending: Vec<SceneEdit>,
+    pending: Vec<(SceneEdit, Instant)>,
 }
 
 impl EditQueue {
-    /// Queues `edit`, replacing a queued edit of the same target in place.
-    pub fn push(&mut self, edit: SceneEdit) {
-        match self.pending.iter_mut().find(|e| e.target() == edit.target()) {
-            Some(queued) => *queued = edit,
-            None => self.pending.push(edit),
+    /// Queues `edit` made at `at`, replacing a queued edit of the same target in place
+    /// (which keeps its earlier instant).
+    pub fn push(&mut self, edit: SceneEdit, at: Instant) {
+        match self.pending.iter_mut().find(|(e, _)| e.target() == edit.target()) {
+            Some((queued, _)) => *queued = edit,
+            None => self.pending.push((edit, at)),
         }
     }
 
-    /// Takes the queued edits, in the order their targets were first edited.
-    pub fn drain(&mut self) -> Vec<SceneEdit> {
+    /// Takes the queued edits with their first input instants, in the order their
+    /// targets were first edited.
+    pub fn drain(&mut self) -> Vec<(SceneEdit, Instant)> {
         std::mem::take(&mut self.pending)
     }
 
@@ -213,14 +219,17 @@ mod tests {
         let cam = |fov| SceneEdit::Camera(Camera { vfov_deg: fov, ..state().camera });
         let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
         let mut q = EditQueue::default();
-        q.push(cam(30.0));
-        q.push(SceneEdit::Light { index: 0, light });
-        q.push(cam(50.0));
-        q.push(SceneEdit::Light { index: 1, light });
+        let t0 = Instant::now();
+        let t = |ms| t0 + std::time::Duration::from_millis(ms);
+        q.push(cam(30.0), t(0));
+        q.push(SceneEdit::Light { index: 0, light }, t(1));
+        q.push(cam(50.0), t(2));
+        q.push(SceneEdit::Light { index: 1, light }, t(3));
         let drained = q.drain();
         assert_eq!(drained.len(), 3);
-        assert_eq!(drained[0], cam(50.0));
-        assert_eq!(drained[1], SceneEdit::Light { index: 0, light });
+        // The newest camera, timed from the first camera input it replaced.
+        assert_eq!(drained[0], (cam(50.0), t(0)));
+        assert_eq!(drained[1], (SceneEdit::Light { index: 0, light }, t(1)));
         assert!(q.is_empty());
     }
 

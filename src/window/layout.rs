@@ -3,7 +3,8 @@
 //!
 //! The render resolution is the scene's and does not follow the window: the picture is
 //! scaled uniformly to fit the area left of the side panel and centred there, with bars
-//! where the aspect ratios differ.
+//! where the aspect ratios differ. [`initial_window_size`] picks a first window size that
+//! fits the screen the window opens on.
 
 use glam::Vec2;
 
@@ -20,6 +21,32 @@ impl Rect {
     /// True when `p` lies inside (left/top edges inclusive, right/bottom exclusive).
     pub fn contains(&self, p: Vec2) -> bool {
         p.x >= self.x && p.y >= self.y && p.x < self.x + self.width && p.y < self.y + self.height
+    }
+}
+
+/// The smallest window the panel is designed for (its sections scroll below this height).
+pub const MIN_WINDOW: (u32, u32) = (800, 600);
+
+/// Share of the screen a new window may take at most, leaving room for the desktop's bars
+/// and the window's decorations.
+pub const SCREEN_SHARE: f32 = 0.9;
+
+/// The first window size: the picture at its render size beside the panel (all in
+/// physical pixels), at least [`MIN_WINDOW`]; on a known `screen`, at most
+/// [`SCREEN_SHARE`] of it but never less than [`MIN_WINDOW`] a screen can hold, and never
+/// more than the screen.
+pub fn initial_window_size(
+    picture: (u32, u32),
+    panel_width: u32,
+    screen: Option<(u32, u32)>,
+) -> (u32, u32) {
+    let wanted = ((picture.0 + panel_width + 16).max(MIN_WINDOW.0), picture.1.max(MIN_WINDOW.1));
+    match screen {
+        Some((w, h)) if w > 0 && h > 0 => {
+            let cap = |s: u32, min: u32| ((s as f32 * SCREEN_SHARE) as u32).max(min.min(s));
+            (wanted.0.min(cap(w, MIN_WINDOW.0)), wanted.1.min(cap(h, MIN_WINDOW.1)))
+        }
+        _ => wanted,
     }
 }
 
@@ -59,6 +86,19 @@ pub fn window_to_picture(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_first_window_fits_the_screen() {
+        // Room enough: the picture at its size beside the panel, at least 800×600.
+        assert_eq!(initial_window_size((640, 480), 300, Some((1920, 1080))), (956, 600));
+        assert_eq!(initial_window_size((1280, 720), 300, Some((2560, 1440))), (1596, 720));
+        // A smaller screen caps it at 90 %, but not below 800×600 where the screen has it.
+        assert_eq!(initial_window_size((1280, 720), 300, Some((1280, 800))), (1152, 720));
+        assert_eq!(initial_window_size((640, 480), 300, Some((800, 600))), (800, 600));
+        assert_eq!(initial_window_size((640, 480), 300, Some((640, 480))), (640, 480));
+        // Unknown screen: what the picture wants.
+        assert_eq!(initial_window_size((640, 480), 300, None), (956, 600));
+    }
 
     #[test]
     fn wide_area_gets_side_bars() {

@@ -57,7 +57,8 @@ use status::StatusView;
 pub enum UserEvent {
     /// A new picture waits in the slot.
     FrameReady,
-    /// The session ended on its own (e.g. the master stopped): close the window.
+    /// The session ended on its own (e.g. the master stopped), or Ctrl-C/SIGTERM came:
+    /// close the window.
     Quit,
 }
 
@@ -80,8 +81,9 @@ pub trait Session {
     fn initial_state(&self) -> SceneState;
     /// The pacing the master started with.
     fn pacing(&self) -> PacingChoice;
-    /// Sends an edit; the master makes a new scene state from it.
-    fn edit(&mut self, edit: SceneEdit);
+    /// Sends an edit made at `at` (its input event); the master makes a new scene state
+    /// from it.
+    fn edit(&mut self, edit: SceneEdit, at: std::time::Instant);
     /// Changes how the master paces frames.
     fn set_pacing(&mut self, pacing: PacingChoice);
     /// Chooses the view the next composed frames show.
@@ -147,6 +149,12 @@ where
     F: FnOnce(EventLoopProxy<UserEvent>, Arc<Latest<Composed>>) -> Result<Box<dyn Session>, String>,
 {
     let event_loop = new_event_loop()?;
+    // Ctrl-C and SIGTERM close the window the way its close button does.
+    let quit = event_loop.create_proxy();
+    crate::signals::on_stop_signal(move |_| {
+        let _ = quit.send_event(UserEvent::Quit);
+    })
+    .map_err(|e| WindowError::Session(format!("cannot install the Ctrl-C handler: {e}")))?;
     let frames = Arc::new(Latest::new());
     let session =
         start(event_loop.create_proxy(), Arc::clone(&frames)).map_err(WindowError::Session)?;

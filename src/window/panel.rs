@@ -103,15 +103,51 @@ pub enum PanelAction {
 /// Width of the side panel in logical points.
 pub const PANEL_WIDTH: f32 = 300.0;
 
-/// Draws the panel, [`PANEL_WIDTH`] wide, on the right of `ui` and returns the user's actions.
+/// Where the panel's content ended up, for the window's layout checks (see
+/// [`super::app`]'s `GRIDLIGHT_PANEL_PROBE`): all in logical points.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PanelLayout {
+    /// The visible part of the scrolled content (the viewport), top and bottom.
+    pub viewport_top: f32,
+    pub viewport_bottom: f32,
+    /// Width available to the content, and the widest the content became.
+    pub viewport_width: f32,
+    pub content_width: f32,
+    /// Height of all the content, and how far it is scrolled.
+    pub content_height: f32,
+    pub scroll_offset: f32,
+    /// The last section's heading, top and bottom (screen coordinates).
+    pub last_heading_top: f32,
+    pub last_heading_bottom: f32,
+}
+
+impl PanelLayout {
+    /// True when the last section's heading is inside the visible part of the panel.
+    pub fn last_section_visible(&self) -> bool {
+        self.last_heading_top >= self.viewport_top - 0.5
+            && self.last_heading_bottom <= self.viewport_bottom + 0.5
+    }
+
+    /// True when something is wider than the panel (and so cut off on the right).
+    pub fn clipped_horizontally(&self) -> bool {
+        self.content_width > self.viewport_width + 0.5
+    }
+}
+
+/// Draws the panel, [`PANEL_WIDTH`] wide, on the right of `ui` and returns the user's actions
+/// and where its content went. Its sections scroll vertically (solid scroll bar beside
+/// the content, never over it); long values wrap instead of widening the panel.
 pub fn show(
     ui: &mut egui::Ui,
     model: &PanelModel,
     settings: &mut PanelSettings,
-) -> Vec<PanelAction> {
+) -> (Vec<PanelAction>, PanelLayout) {
     let mut actions = Vec::new();
+    let mut layout = PanelLayout::default();
     egui::Panel::right("gridlight-panel").resizable(false).exact_size(PANEL_WIDTH).show(ui, |ui| {
-        egui::ScrollArea::vertical().show(ui, |ui| {
+        ui.spacing_mut().scroll = egui::style::ScrollStyle::solid();
+        let out = egui::ScrollArea::vertical().auto_shrink([false, false]).show(ui, |ui| {
+            let content_left = ui.min_rect().left();
             status_section(ui, model.status);
             ui.separator();
             view_section(ui, settings, &mut actions);
@@ -124,52 +160,91 @@ pub fn show(
             ui.separator();
             environment_section(ui, model, &mut actions);
             ui.separator();
-            record_section(ui, model, settings, &mut actions);
+            let heading = record_section(ui, model, settings, &mut actions);
+            (heading, ui.min_rect().right() - content_left)
         });
+        let (heading, content_width) = out.inner;
+        layout = PanelLayout {
+            viewport_top: out.inner_rect.top(),
+            viewport_bottom: out.inner_rect.bottom(),
+            viewport_width: out.inner_rect.width(),
+            content_width,
+            content_height: out.content_size.y,
+            scroll_offset: out.state.clamped_offset().y,
+            last_heading_top: heading.top(),
+            last_heading_bottom: heading.bottom(),
+        };
     });
-    actions
+    (actions, layout)
+}
+
+/// One label/value row of a two-column grid; the value wraps within the panel.
+fn grid_row(ui: &mut egui::Ui, label: &str, value: impl Into<String>) {
+    ui.label(label);
+    ui.add(egui::Label::new(value.into()).wrap());
+    ui.end_row();
 }
 
 fn status_section(ui: &mut egui::Ui, s: &StatusView) {
     ui.heading("Status");
-    egui::Grid::new("status").num_columns(2).show(ui, |ui| {
-        let mut row = |label: &str, value: String| {
-            ui.label(label);
-            ui.label(value);
-            ui.end_row();
+    // The value column gets what the label column leaves, so long values wrap.
+    let value_width = (ui.available_width() - 130.0).max(60.0);
+    egui::Grid::new("status").num_columns(2).max_col_width(value_width).show(ui, |ui| {
+        grid_row(ui, "fps", format!("{:.1}", s.fps));
+        grid_row(ui, "frame / state", format!("{} / v{}", s.frame, s.state_version));
+        grid_row(ui, "Q_t", format!("{:.2} ({}/{} jobs)", s.q, s.jobs_back, s.jobs_total));
+        grid_row(ui, "I_t", format!("{:.2}", s.i));
+        let latency = match s.edit_latency_ms {
+            Some(l) => format!("{:.0} ms (median {:.0}, p95 {:.0})", l.last, l.median, l.p95),
+            None => "no edit shown yet".into(),
         };
-        row("fps", format!("{:.1}", s.fps));
-        row("frame / state", format!("{} / v{}", s.frame, s.state_version));
-        row("Q_t", format!("{:.2} ({}/{} jobs)", s.q, s.jobs_back, s.jobs_total));
-        row("I_t", format!("{:.2}", s.i));
-        row("frames skipped", s.frames_skipped.to_string());
-        row("dropped late", s.dropped_late.to_string());
-        row("not drawn (newer came)", s.frames_replaced.to_string());
-        row(
+        grid_row(ui, "edit to display", latency);
+        grid_row(ui, "frames skipped", s.frames_skipped.to_string());
+        grid_row(ui, "dropped late", s.dropped_late.to_string());
+        grid_row(ui, "not drawn", format!("{} (a newer frame came)", s.frames_replaced));
+        grid_row(
+            ui,
             "bytes in / out",
             format!("{} / {}", human_bytes(s.bytes_in), human_bytes(s.bytes_out)),
         );
-        row("reconstruction", s.reconstructor.clone());
-        row("adapter", s.adapter.clone());
+        grid_row(ui, "reconstruction", s.reconstructor.clone());
+        grid_row(ui, "adapter", s.adapter.clone());
     });
-    ui.collapsing(format!("Workers ({})", s.workers.len()), |ui| {
-        egui::Grid::new("workers").num_columns(4).striped(true).show(ui, |ui| {
-            for h in ["name", "cores", "jobs/s", "seen"] {
-                ui.strong(h);
-            }
-            ui.end_row();
-            for w in &s.workers {
-                ui.label(&w.name);
-                ui.label(w.cores.to_string());
-                match &w.paused {
-                    Some(why) => ui.label(format!("paused: {why}")),
-                    None => ui.label(format!("{:.1}", w.jobs_per_second)),
-                };
-                ui.label(format!("{:.1} s ago", w.last_seen_s));
-                ui.end_row();
-            }
+    egui::CollapsingHeader::new(format!("Workers ({})", s.workers.len()))
+        .default_open(true)
+        .show(ui, |ui| workers_list(ui, &s.workers));
+}
+
+/// Each worker with its colour in the workers view (the legend), host and counts.
+fn workers_list(ui: &mut egui::Ui, workers: &[super::status::WorkerRow]) {
+    if workers.is_empty() {
+        ui.label("no worker connected");
+    }
+    for w in workers {
+        ui.horizontal(|ui| {
+            let [r, g, b] = crate::view::worker_colour(w.id);
+            let (rect, _) = ui.allocate_exact_size(egui::vec2(12.0, 12.0), egui::Sense::hover());
+            ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(r, g, b));
+            let cores = if w.cores == 1 { "core" } else { "cores" };
+            ui.add(
+                egui::Label::new(format!("{} on {}, {} {cores}", w.name, w.host, w.cores)).wrap(),
+            );
         });
-    });
+        let rate = match &w.paused {
+            Some(why) => format!("paused: {why}"),
+            None => format!("{:.1} jobs/s", w.jobs_per_second),
+        };
+        ui.add(
+            egui::Label::new(
+                egui::RichText::new(format!(
+                    "{} jobs, {} late, {:.1} ms/job, {rate}, seen {:.1} s ago",
+                    w.jobs, w.late, w.mean_job_ms, w.last_seen_s
+                ))
+                .small(),
+            )
+            .wrap(),
+        );
+    }
 }
 
 fn view_section(ui: &mut egui::Ui, settings: &mut PanelSettings, actions: &mut Vec<PanelAction>) {
@@ -179,7 +254,7 @@ fn view_section(ui: &mut egui::Ui, settings: &mut PanelSettings, actions: &mut V
             ui.selectable_value(&mut settings.view, view, view.label());
         }
     });
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         ui.label("camera:");
         ui.radio_value(&mut settings.camera_mode, CameraMode::Orbit, "orbit");
         ui.radio_value(&mut settings.camera_mode, CameraMode::Fly, "fly");
@@ -187,8 +262,14 @@ fn view_section(ui: &mut egui::Ui, settings: &mut PanelSettings, actions: &mut V
             actions.push(PanelAction::ResetCamera);
         }
     });
-    ui.small(
-        "drag: orbit/look · wheel: zoom · WASD/QE: fly · click: pick · arrows/PgUp/PgDn: nudge",
+    ui.add(
+        egui::Label::new(
+            egui::RichText::new(
+                "drag: orbit/look · wheel: zoom · WASD/QE: fly · click: pick · arrows/PgUp/PgDn: nudge · 1–6: views",
+            )
+            .small(),
+        )
+        .wrap(),
     );
 }
 
@@ -196,7 +277,7 @@ fn pacing_section(ui: &mut egui::Ui, settings: &mut PanelSettings, actions: &mut
     ui.heading("Pacing");
     let before = settings.pacing;
     let mut fixed = matches!(settings.pacing, PacingChoice::FixedFps(_));
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         ui.radio_value(&mut fixed, false, "quality heuristic");
         ui.radio_value(&mut fixed, true, "fixed frame rate");
     });
@@ -380,15 +461,16 @@ fn environment_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<
     }
 }
 
+/// The last section; returns its heading's rectangle.
 fn record_section(
     ui: &mut egui::Ui,
     model: &PanelModel,
     settings: &mut PanelSettings,
     actions: &mut Vec<PanelAction>,
-) {
-    ui.heading("Recording and screenshots");
+) -> egui::Rect {
+    let heading = ui.heading("Recording and screenshots").rect;
     ui.checkbox(&mut settings.recording, format!("record edits ({} so far)", model.recorded));
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         if ui.button("save script").clicked() {
             actions.push(PanelAction::SaveScript);
         }
@@ -399,8 +481,9 @@ fn record_section(
         }
     });
     if !model.message.is_empty() {
-        ui.small(model.message);
+        ui.add(egui::Label::new(egui::RichText::new(model.message).small()).wrap());
     }
+    heading
 }
 
 fn default_environment() -> Environment {

@@ -9,12 +9,12 @@
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use gridlight_actors::edit::Edit;
 use gridlight_actors::edit::{CameraEdit, EnvironmentEdit, MaterialEdit, ObjectEdit};
-use gridlight_actors::master::MasterHandle;
+use gridlight_actors::master::{MasterHandle, MasterReport};
 use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
 use gridlight_actors::state::SceneState;
 use serde::Serialize;
@@ -91,6 +91,7 @@ fn status_of(frame: &ShownFrame, reconstructor: String) -> StatusView {
         bytes_in: s.bytes_in,
         bytes_out: s.bytes_out,
         reconstructor,
+        edits_at: s.edits_at.clone(),
         ..Default::default()
     }
 }
@@ -178,7 +179,12 @@ pub struct MasterSession {
     script_path: PathBuf,
     /// Stops what else the session started (the demo's local workers).
     on_shutdown: Option<Box<dyn FnOnce()>>,
+    /// The master's report once it stopped, for whoever started the window.
+    report: SharedReport,
 }
+
+/// Where the session leaves the master's report when it stops.
+pub type SharedReport = Arc<Mutex<Option<MasterReport>>>;
 
 impl MasterSession {
     pub fn new(
@@ -191,6 +197,7 @@ impl MasterSession {
         on_shutdown: Option<Box<dyn FnOnce()>>,
     ) -> Self {
         Self {
+            report: SharedReport::default(),
             handle: Some(handle),
             state: initial.clone(),
             initial,
@@ -203,6 +210,14 @@ impl MasterSession {
     }
 }
 
+impl MasterSession {
+    /// Leaves the master's report in `report` when the session stops it.
+    pub fn reporting_to(mut self, report: SharedReport) -> Self {
+        self.report = report;
+        self
+    }
+}
+
 impl Session for MasterSession {
     fn initial_state(&self) -> SceneState {
         self.initial.clone()
@@ -212,14 +227,14 @@ impl Session for MasterSession {
         self.pacing
     }
 
-    fn edit(&mut self, edit: SceneEdit) {
+    fn edit(&mut self, edit: SceneEdit, at: std::time::Instant) {
         let Some(master_edit) = to_master_edit(&edit, &self.state) else { return };
         if edit.apply(&mut self.state).is_err() {
             return;
         }
-        // The script path: a message to the scene holder, never a wait on the actors.
+        // A message to the scene holder, never a wait on the actors.
         if let Some(h) = &self.handle {
-            h.play_script(vec![(Duration::ZERO, master_edit)]);
+            h.edit_made(master_edit, at);
         }
     }
 
@@ -247,9 +262,14 @@ impl Session for MasterSession {
             .workers()
             .into_iter()
             .map(|w| WorkerRow {
+                id: w.id,
                 name: w.name,
+                host: w.host,
                 cores: w.cores,
                 jobs_per_second: w.jobs_per_second as f32,
+                jobs: w.jobs,
+                late: w.late,
+                mean_job_ms: w.mean_job_time.as_secs_f32() * 1e3,
                 last_seen_s: w.last_seen.as_secs_f32(),
                 paused: w.paused.map(|r| r.to_string()),
             })
@@ -278,8 +298,9 @@ impl Session for MasterSession {
 
     fn shutdown(&mut self) {
         if let Some(handle) = self.handle.take() {
-            if let Err(err) = handle.stop() {
-                tracing::warn!(cause = %err, "master did not stop cleanly");
+            match handle.stop() {
+                Ok(report) => *self.report.lock().unwrap_or_else(|p| p.into_inner()) = Some(report),
+                Err(err) => tracing::warn!(cause = %err, "master did not stop cleanly"),
             }
         }
         if let Some(stop) = self.on_shutdown.take() {
@@ -303,15 +324,17 @@ pub struct MasterStart {
 }
 
 /// Starts a master whose frames go to a window and runs the window on this thread until
-/// it closes; closing it stops the master, then calls `on_shutdown`. The entry point for
-/// the windowed `gridlight demo`/`master`.
+/// it closes (or Ctrl-C/SIGTERM); closing it stops the master, then calls `on_shutdown`.
+/// The entry point for the windowed `gridlight demo`/`master`; returns the master's report.
 pub fn run_master_window(
     options: super::WindowOptions,
     start: MasterStart,
-) -> Result<(), super::WindowError> {
+) -> Result<MasterReport, super::WindowError> {
     let script_path = options.shot_dir.join("gridlight-session.toml");
     let MasterStart { config, state, store, composer, script, on_listening, on_shutdown } = start;
     let pacing = PacingChoice::from(config.pacing);
+    let report: SharedReport = Arc::default();
+    let session_report = Arc::clone(&report);
     super::run(options, move |proxy, frames| {
         let scene = composer.scene();
         let view: SharedView = Arc::new(AtomicU8::new(0));
@@ -319,7 +342,8 @@ pub fn run_master_window(
         let handle = gridlight_actors::master::start(config, state.clone(), store, Box::new(sink))
             .map_err(|e| format!("cannot start the master: {e}"))?;
         let mut session =
-            MasterSession::new(handle, state, pacing, scene, view, script_path, on_shutdown);
+            MasterSession::new(handle, state, pacing, scene, view, script_path, on_shutdown)
+                .reporting_to(session_report);
         let addr = session.handle.as_ref().map(|h| h.local_addr());
         if let Some(addr) = addr {
             if let Err(e) = on_listening(addr) {
@@ -331,6 +355,10 @@ pub fn run_master_window(
             h.play_script(script);
         }
         Ok(Box::new(session))
+    })?;
+    let report = report.lock().unwrap_or_else(|p| p.into_inner()).take();
+    report.ok_or_else(|| {
+        super::WindowError::Session("the master did not report how it stopped".into())
     })
 }
 

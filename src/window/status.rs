@@ -8,9 +8,19 @@ use std::time::{Duration, Instant};
 /// One row of the worker list.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct WorkerRow {
+    /// Its connection, which also picks its colour in the workers view.
+    pub id: u64,
     pub name: String,
+    /// The host it connects from.
+    pub host: String,
     pub cores: u32,
     pub jobs_per_second: f32,
+    /// Results accepted since it joined.
+    pub jobs: u64,
+    /// Results that came back after their frame was shown.
+    pub late: u64,
+    /// Mean render time per job, milliseconds.
+    pub mean_job_ms: f32,
     /// Seconds since the master last heard from it.
     pub last_seen_s: f32,
     /// Why it paused (its desk's owner is active); `None` while it takes jobs.
@@ -40,6 +50,57 @@ pub struct StatusView {
     /// The reconstructor and the window's graphics adapter, for the curious.
     pub reconstructor: String,
     pub adapter: String,
+    /// When the edits this frame shows first were made (the window stamps the latency
+    /// when it draws the frame).
+    pub edits_at: Vec<Instant>,
+    /// Edit-to-display latency: the last edit's, and the median and 95th percentile of
+    /// recent ones, milliseconds (`None` before the first edit was shown).
+    pub edit_latency_ms: Option<LatencySummary>,
+}
+
+/// The edit-to-display latencies the panel shows.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LatencySummary {
+    pub last: f32,
+    pub median: f32,
+    pub p95: f32,
+}
+
+/// Recent edit-to-display latencies (the last [`LatencyMeter::KEEP`]).
+#[derive(Clone, Debug, Default)]
+pub struct LatencyMeter {
+    recent: VecDeque<f32>,
+}
+
+impl LatencyMeter {
+    /// Latencies kept for the median and percentile.
+    pub const KEEP: usize = 200;
+
+    /// Records one latency in milliseconds.
+    pub fn record(&mut self, ms: f32) {
+        if self.recent.len() == Self::KEEP {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(ms);
+    }
+
+    /// Last, median and 95th percentile (nearest rank); `None` before any.
+    pub fn summary(&self) -> Option<LatencySummary> {
+        let last = *self.recent.back()?;
+        let mut sorted: Vec<f32> = self.recent.iter().copied().collect();
+        sorted.sort_by(f32::total_cmp);
+        Some(LatencySummary {
+            last,
+            median: percentile(&sorted, 50.0),
+            p95: percentile(&sorted, 95.0),
+        })
+    }
+}
+
+/// The `p`-th percentile of sorted, non-empty `values` by nearest rank.
+pub fn percentile(sorted: &[f32], p: f32) -> f32 {
+    let rank = ((p / 100.0) * sorted.len() as f32).ceil() as usize;
+    sorted[rank.clamp(1, sorted.len()) - 1]
 }
 
 /// Frames per second over a sliding window of recent frame times.
@@ -112,6 +173,22 @@ mod tests {
         meter.tick(start + Duration::from_secs(10));
         meter.tick(start + Duration::from_millis(10_500));
         assert!((meter.fps() - 2.0).abs() < 1e-3, "{}", meter.fps());
+    }
+
+    #[test]
+    fn latency_summary_is_the_last_the_median_and_the_95th_percentile() {
+        let mut m = LatencyMeter::default();
+        assert_eq!(m.summary(), None);
+        for ms in (1..=100).rev() {
+            m.record(ms as f32);
+        }
+        let s = m.summary().unwrap();
+        assert_eq!((s.last, s.median, s.p95), (1.0, 50.0, 95.0));
+        // Only the most recent ones count.
+        for _ in 0..LatencyMeter::KEEP {
+            m.record(7.0);
+        }
+        assert_eq!(m.summary().unwrap().p95, 7.0);
     }
 
     #[test]
