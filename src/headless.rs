@@ -47,6 +47,8 @@ pub struct Summary {
     pub dropped_late: u64,
     pub dropped_duplicate: u64,
     pub dropped_unknown: u64,
+    /// Results used in shown frames ÷ results returned (accepted or late); `null` before any.
+    pub useful_fraction: Option<f64>,
     pub max_workers: u64,
     pub bytes_in: u64,
     pub bytes_out: u64,
@@ -125,6 +127,7 @@ impl HeadlessSink {
         sum.dropped_late = s.dropped_late;
         sum.dropped_duplicate = s.dropped_duplicate;
         sum.dropped_unknown = s.dropped_unknown;
+        sum.useful_fraction = s.useful_fraction;
         sum.max_workers = sum.max_workers.max(s.workers);
         sum.bytes_in = s.bytes_in;
         sum.bytes_out = s.bytes_out;

@@ -22,7 +22,7 @@ use crate::frame_table::ClosedFrame;
 use crate::protocol::FrameNo;
 use crate::scheduler::{FrameDisplayed, FramesAbandoned};
 use crate::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
-use crate::stats::{Counters, FrameStats};
+use crate::stats::{useful_fraction, Counters, FrameStats};
 use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
 
@@ -62,7 +62,9 @@ pub struct ReportState {
 struct Pending {
     back: u32,
     total: u32,
-    scheduled_at: Instant,
+    /// Its first job was handed out (the first progress report): the start of its
+    /// computation, from which the heuristic measures the frame's time (paper §4.3).
+    started_at: Instant,
 }
 
 /// Pacing, the frames being waited on, accumulation and the sink.
@@ -169,7 +171,7 @@ impl Handler<FrameProgress> for Display {
         let p = self.pending.entry(msg.frame).or_insert(Pending {
             back: 0,
             total: msg.total,
-            scheduled_at: now,
+            started_at: now,
         });
         p.back = p.back.max(msg.back);
         p.total = msg.total;
@@ -235,7 +237,14 @@ impl Display {
             return;
         }
         let Some((&frame, &p)) = self.pending.iter().next() else { return };
-        let start = p.scheduled_at.max(self.last_close_at);
+        // The heuristic times a frame from the start of its computation, so frames that
+        // were computed side by side and complete together are not judged by the instant
+        // between their displays (a frame after such a burst would be skipped at once, its
+        // results all late). A fixed rate counts from the previous display.
+        let start = match self.pacing {
+            Pacing::Heuristic(_) => p.started_at,
+            Pacing::FixedFps(_) => p.started_at.max(self.last_close_at),
+        };
         let elapsed = start.elapsed();
         let abandoned = frame < self.abandoned_before;
         // An abandoned frame is judged as if its time were up: shown if good enough.
@@ -326,6 +335,12 @@ impl Display {
         self.accum.add(version);
         self.shown += 1;
         let c = &self.counters;
+        Counters::add(&c.results_used, u64::from(closed.back));
+        let (used, accepted, late) = (
+            Counters::get(&c.results_used),
+            Counters::get(&c.results_accepted),
+            Counters::get(&c.dropped_late),
+        );
         let stats = FrameStats {
             frame: closed.frame,
             state_version: version,
@@ -335,7 +350,7 @@ impl Display {
             i,
             wait_ms: elapsed.as_secs_f64() * 1e3,
             skipped: std::mem::take(&mut self.skipped_since_show),
-            dropped_late: Counters::get(&c.dropped_late),
+            dropped_late: late,
             dropped_duplicate: Counters::get(&c.dropped_duplicate),
             dropped_unknown: Counters::get(&c.dropped_unknown),
             workers: Counters::get(&c.workers),
@@ -343,6 +358,9 @@ impl Display {
             bytes_out: Counters::get(&c.bytes_out),
             shown: self.shown,
             accumulated_frames: self.accum.frames(),
+            results_used: used,
+            results_returned: accepted + late,
+            useful_fraction: useful_fraction(used, accepted, late),
         };
         let frame = PackedShownFrame {
             frame: closed.frame,

@@ -25,7 +25,7 @@ use crate::frame_table::ConnId;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
 use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT};
 use crate::scene_holder::{ApplyEdit, CurrentState, PlayScript, SceneHolder};
-use crate::scheduler::{Scheduler, SchedulerLinks};
+use crate::scheduler::{PacingChanged, Scheduler, SchedulerLinks};
 use crate::sets::SetTable;
 use crate::sink::FrameSink;
 use crate::state::{SceneState, StateVersion};
@@ -240,6 +240,7 @@ fn wire(
         config.sets.sets,
         threshold,
         state.clone(),
+        config.pacing,
         links,
         counters.clone(),
         config.restart,
@@ -262,6 +263,7 @@ fn wire(
     let links = ConnectionLinks {
         ready_to: scheduler.clone().recipient(),
         left_to: scheduler.clone().recipient(),
+        answered_to: scheduler.clone().recipient(),
         results_to: assembler.clone().recipient(),
         ended_to: listener_addr.clone().recipient(),
     };
@@ -283,7 +285,9 @@ impl MasterHandle {
     /// Changes the pacing (wait heuristic bounds or frame rate) from now on; a bad value
     /// is refused with the reason and the pacing stays as it was.
     pub fn set_pacing(&self, pacing: Pacing) -> Result<(), MasterError> {
-        block_on(self.display.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)
+        block_on(self.display.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)?;
+        self.scheduler.do_send(PacingChanged(pacing));
+        Ok(())
     }
 
     /// The workers connected now, with their rates.

@@ -29,6 +29,9 @@ pub enum What {
     Trace(TraceArgs),
     /// The master alone: null-render workers on loopback, 640×480, S = 64.
     Master(super::bench_master::MasterArgs),
+    /// The useful fraction of returned results with null-render workers that take
+    /// `--job-ms` per job, at each grid size.
+    Waste(super::bench_waste::WasteArgs),
     /// Milliseconds per 640×480 frame of the full reconstruction pipeline, CPU and GPU.
     Reconstruct(ReconstructArgs),
 }
@@ -98,6 +101,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             Ok(())
         }
         What::Master(args) => super::bench_master::run(args, global),
+        What::Waste(args) => super::bench_waste::run(args, global),
     }
 }
 

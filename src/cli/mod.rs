@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand};
 
 pub mod bench;
 pub mod bench_master;
+pub mod bench_waste;
 pub mod demo;
 pub mod eval;
 pub mod master;
