@@ -2,10 +2,10 @@
 //!
 //! It accepts a result only for a frame not yet displayed and a (frame, set) handed out
 //! to that connection and not yet answered; everything else is dropped and counted.
-//! It reports each frame's progress (Q_t's numerator) to the display, the first time when
-//! its first job is handed out (the start of the frame's computation, from which the
-//! paper's heuristic measures its time), and hands a frame over, once, when the display
-//! closes it.
+//! It reports each frame's progress (Q_t's numerator) to the display: when it is scheduled,
+//! when its first job is handed out (the start of the frame's computation, from which the
+//! paper's heuristic measures its time) and with every result; and hands a frame over,
+//! once, when the display closes it.
 
 use std::sync::Arc;
 
@@ -42,6 +42,8 @@ pub struct FrameProgress {
     pub state_version: StateVersion,
     pub back: u32,
     pub total: u32,
+    /// A job of the frame was handed out: its computation has started.
+    pub started: bool,
 }
 
 /// The frame table and where progress goes.
@@ -75,7 +77,10 @@ impl Actor for Assembler {
 impl Handler<FrameScheduled> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: FrameScheduled, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |a| a.table.open(msg.frame, msg.state));
+        self.guarded(ctx, |a| {
+            a.table.open(msg.frame, msg.state);
+            a.report_progress(msg.frame);
+        });
     }
 }
 
@@ -107,7 +112,14 @@ impl Handler<ResultArrived> for Assembler {
             match verdict {
                 Verdict::Accepted { back, total } => {
                     Counters::add(&c.results_accepted, 1);
-                    a.progress_to.do_send(FrameProgress { frame, state_version, back, total });
+                    let started = true;
+                    a.progress_to.do_send(FrameProgress {
+                        frame,
+                        state_version,
+                        back,
+                        total,
+                        started,
+                    });
                 }
                 Verdict::Late => Counters::add(&c.dropped_late, 1),
                 Verdict::Duplicate => Counters::add(&c.dropped_duplicate, 1),
@@ -142,7 +154,8 @@ impl Assembler {
         if let (Some((back, total)), Some(state_version)) =
             (self.table.progress(frame), self.table.version(frame))
         {
-            self.progress_to.do_send(FrameProgress { frame, state_version, back, total });
+            let started = self.table.started(frame);
+            self.progress_to.do_send(FrameProgress { frame, state_version, back, total, started });
         }
     }
 

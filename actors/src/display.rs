@@ -62,9 +62,10 @@ pub struct ReportState {
 struct Pending {
     back: u32,
     total: u32,
-    /// Its first job was handed out (the first progress report): the start of its
-    /// computation, from which the heuristic measures the frame's time (paper §4.3).
-    started_at: Instant,
+    scheduled_at: Instant,
+    /// Its first job was handed out: the start of its computation, from which the
+    /// heuristic measures the frame's time (paper §4.3).
+    started_at: Option<Instant>,
 }
 
 /// Pacing, the frames being waited on, accumulation and the sink.
@@ -171,8 +172,12 @@ impl Handler<FrameProgress> for Display {
         let p = self.pending.entry(msg.frame).or_insert(Pending {
             back: 0,
             total: msg.total,
-            started_at: now,
+            scheduled_at: now,
+            started_at: None,
         });
+        if msg.started && p.started_at.is_none() {
+            p.started_at = Some(now);
+        }
         p.back = p.back.max(msg.back);
         p.total = msg.total;
         self.evaluate(ctx);
@@ -240,10 +245,12 @@ impl Display {
         // The heuristic times a frame from the start of its computation, so frames that
         // were computed side by side and complete together are not judged by the instant
         // between their displays (a frame after such a burst would be skipped at once, its
-        // results all late). A fixed rate counts from the previous display.
-        let start = match self.pacing {
-            Pacing::Heuristic(_) => p.started_at,
-            Pacing::FixedFps(_) => p.started_at.max(self.last_close_at),
+        // results all late). A fixed rate, and a frame not started yet, count from the
+        // later of its scheduling and the previous display.
+        let queued = p.scheduled_at.max(self.last_close_at);
+        let start = match (self.pacing, p.started_at) {
+            (Pacing::Heuristic(_), Some(started)) => started,
+            _ => queued,
         };
         let elapsed = start.elapsed();
         let abandoned = frame < self.abandoned_before;
@@ -311,7 +318,10 @@ impl Display {
                             return act.restart_after(&msg, ctx);
                         }
                     }
-                    _ => {
+                    other => {
+                        if let Ok(Some(closed)) = other {
+                            Counters::add(&act.counters.results_unused, u64::from(closed.back));
+                        }
                         // The skipped frame's time becomes the last frame's time, so that
                         // when workers slow down I_max grows until frames complete again
                         // (otherwise a fast past would make every frame skip forever).

@@ -97,15 +97,19 @@ impl HandOutPlan {
     /// The frame, among `open` (frames with sets left, oldest first), that `conn`'s next
     /// job should come from at `now`; `None` when it should wait for a later frame.
     pub fn choose(&self, conn: ConnId, open: &[FrameNo], now: Instant) -> Option<FrameNo> {
-        let arrival = self.arrival(conn, now);
-        let fits = |f: &&FrameNo| match (arrival, self.deadline(**f, now)) {
-            (Some(a), Some(d)) => a <= d,
-            _ => true,
-        };
-        match open.iter().find(fits) {
+        match open.iter().find(|f| self.fits(conn, **f, now)) {
             Some(&f) => Some(f),
             None if self.held(conn) == 0 => open.last().copied(),
             None => None,
+        }
+    }
+
+    /// Whether a job of `frame` handed to `conn` at `now` is forecast to come back before
+    /// the frame is displayed (true when either cannot be forecast yet).
+    pub fn fits(&self, conn: ConnId, frame: FrameNo, now: Instant) -> bool {
+        match (self.arrival(conn, now), self.deadline(frame, now)) {
+            (Some(a), Some(d)) => a <= d,
+            _ => true,
         }
     }
 
@@ -285,6 +289,7 @@ mod tests {
         // Holding nothing, it gets the newest frame anyway: it must stay measured.
         p.answered(1, 7, 0, now + MS * 250);
         assert_eq!(p.choose(1, &[5, 6], now + MS * 250), Some(6));
+        assert!(!p.fits(1, 6, now + MS * 250) && p.fits(1, 9, now + MS * 250));
     }
 
     #[test]

@@ -101,20 +101,28 @@ impl JobQueue {
     /// window allows); returns the frames added.
     pub fn top_up(&mut self) -> Vec<NewFrame> {
         let mut added = Vec::new();
-        while self.queue.len() < self.threshold
-            && self.next_frame - self.first_open < self.max_frames_open
-        {
-            let frame = self.next_frame;
-            self.next_frame += 1;
-            let first = first_set(frame, self.sets);
-            for i in 0..self.quota {
-                let set = (first + i) % self.sets;
-                self.queue.push_back(Job { frame, set, state: self.state.clone() });
-            }
-            self.opened.insert(frame, (self.quota, self.state.clone()));
-            added.push(NewFrame { frame, state: self.state.clone() });
+        while self.queue.len() < self.threshold {
+            let Some(f) = self.open_frame() else { break };
+            added.push(f);
         }
         added
+    }
+
+    /// Adds one frame whatever the threshold, if the frame window allows (a worker whose
+    /// result would be late for every queued frame can be in time for a later one).
+    pub fn open_frame(&mut self) -> Option<NewFrame> {
+        if self.next_frame - self.first_open >= self.max_frames_open {
+            return None;
+        }
+        let frame = self.next_frame;
+        self.next_frame += 1;
+        let first = first_set(frame, self.sets);
+        for i in 0..self.quota {
+            let set = (first + i) % self.sets;
+            self.queue.push_back(Job { frame, set, state: self.state.clone() });
+        }
+        self.opened.insert(frame, (self.quota, self.state.clone()));
+        Some(NewFrame { frame, state: self.state.clone() })
     }
 
     /// Queues up to `n` more sets of an open frame, ones never queued before (a worker left

@@ -255,13 +255,19 @@ impl Scheduler {
         }
     }
 
-    /// Up to `credits` jobs for `conn`, topping the queue up as it empties.
+    /// Up to `credits` jobs for `conn`, topping the queue up as it empties, and opening
+    /// later frames (as far as the window allows) when no queued one is in time for it.
     fn take_for(&mut self, conn: ConnId, credits: u32, now: Instant) -> Vec<Job> {
         let mut jobs = Vec::new();
         while jobs.len() < credits as usize {
             self.top_up();
-            let Some(frame) = self.plan.choose(conn, &self.queue.frames(), now) else { break };
-            let Some(job) = self.queue.take_from(frame) else { break };
+            let mut frame = self.plan.choose(conn, &self.queue.frames(), now);
+            while !frame.is_some_and(|f| self.plan.fits(conn, f, now)) {
+                let Some(f) = self.queue.open_frame() else { break };
+                self.links.frames_to.do_send(FrameScheduled { frame: f.frame, state: f.state });
+                frame = self.plan.choose(conn, &self.queue.frames(), now);
+            }
+            let Some(job) = frame.and_then(|f| self.queue.take_from(f)) else { break };
             self.plan.handed(conn, job.frame, job.set, now);
             jobs.push(job);
         }

@@ -29,6 +29,8 @@ pub struct Counters {
     /// Results in frames that were shown (the display adds each shown frame's `jobs_back`):
     /// the useful ones. Accepted results of skipped frames are not used.
     pub results_used: AtomicU64,
+    /// Results accepted into frames that were then skipped: never used.
+    pub results_unused: AtomicU64,
     /// Jobs handed out by the scheduler.
     pub jobs_handed_out: AtomicU64,
     /// Hand-outs of a (frame, set) that had been handed out before; the no-redundancy

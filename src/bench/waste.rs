@@ -7,7 +7,8 @@
 //! answering after `--job-ms` of simulated render time (a sleep on its render thread, so
 //! 256 of them cost this machine nothing). After a warm-up (every worker connected and a
 //! few frames shown) the counters are sampled over a fixed interval: results used in shown
-//! frames against results returned (accepted or dropped as late).
+//! frames against results judged in it (used, accepted into skipped frames, or dropped as
+//! late).
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -59,6 +60,8 @@ pub struct WasteBench {
     pub dropped_late: u64,
     /// Accepted into frames that were then skipped.
     pub unused_accepted: u64,
+    /// Accepted into frames not yet displayed when the interval ended (not judged).
+    pub pending_accepted: i64,
     /// Useful results per second ÷ what the grid can render per second (workers / job time):
     /// the share of the grid's capacity that reached an image.
     pub useful_per_capacity: f64,
@@ -130,6 +133,7 @@ fn measure(
     let used = after.used - before.used;
     let accepted = after.accepted - before.accepted;
     let late = after.late - before.late;
+    let unused = after.unused - before.unused;
     let frames = after.shown - before.shown;
     let capacity = f64::from(workers) * 1e3 / f64::from(opts.job_ms) * seconds;
     Ok(WasteBench {
@@ -138,11 +142,14 @@ fn measure(
         sets: opts.sets,
         pipeline: opts.pipeline,
         pacing: opts.fps.map_or_else(|| "heuristic".into(), |f| format!("fps={f}")),
-        useful_fraction: useful_fraction(used, accepted, late).unwrap_or(0.0),
+        // Judged results only: those in frames still open at either end of the interval are
+        // neither used nor wasted yet (at 8 workers a frame takes a second).
+        useful_fraction: useful_fraction(used, used + unused, late).unwrap_or(0.0),
         results_used: used,
-        results_returned: accepted + late,
+        results_returned: used + unused + late,
         dropped_late: late,
-        unused_accepted: accepted.saturating_sub(used),
+        unused_accepted: unused,
+        pending_accepted: accepted as i64 - (used + unused) as i64,
         useful_per_capacity: used as f64 / capacity,
         frames_per_second: frames as f64 / seconds,
         frames_skipped: after.skipped - before.skipped,
@@ -157,6 +164,7 @@ struct Sample {
     shown: u64,
     skipped: u64,
     used: u64,
+    unused: u64,
     accepted: u64,
     late: u64,
 }
@@ -170,6 +178,7 @@ impl Sample {
             shown: report.shown,
             skipped: report.skipped,
             used: Counters::get(&c.results_used),
+            unused: Counters::get(&c.results_unused),
             accepted: Counters::get(&c.results_accepted),
             late: Counters::get(&c.dropped_late),
         }
