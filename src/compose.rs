@@ -237,10 +237,12 @@ mod tests {
         c.compose(&f, View::Final).unwrap(); // the first frame of a state is filtered
         f.frame = 2;
         let out = c.compose(&f, View::Final).unwrap().linear.unwrap();
-        for i in 0..g.len() {
-            let want = f.current[i] + g.emission[i];
-            let err = (out[i] - want).abs().max_element();
-            assert!(err <= 1e-5 * want.max_element().max(1.0), "pixel {i}: {} vs {want}", out[i]);
+        // Accumulating: the emission is the pixel-area mean (`reconstruct::emission`).
+        let area = Arc::clone(&c.converging.as_ref().expect("an accumulating G-buffer").1);
+        for (i, got) in out.iter().enumerate() {
+            let want = f.current[i] + area.emission[i];
+            let err = (*got - want).abs().max_element();
+            assert!(err <= 1e-5 * want.max_element().max(1.0), "pixel {i}: {got} vs {want}");
         }
     }
 
