@@ -4,6 +4,14 @@
 //! G-buffers come from the wgpu raster pass on a hardware adapter and from primary rays on
 //! the CPU otherwise ([`GBufferSource`]); reconstruction likewise (`--reconstruct`).
 //!
+//! Workers send reflected radiance (not demodulated); the composer divides it by the
+//! frame's G-buffer albedo before reconstruction, which multiplies the same albedo back in,
+//! so wherever no filter moves light between pixels (a converged static view) the master's
+//! image is exactly the workers' mean colour. (Workers used to demodulate every sample by
+//! its own primary hit: remodulated by the pixel centre's albedo, each pixel on an edge
+//! between two albedos a and b came out brighter, a/b + b/a > 2, and the Cornell box
+//! 0.7–1.0 % brighter than `gridlight render`; `tests/master_matches_render.rs`.)
+//!
 //! One composer serves both the headless sink and the window, so that what a headless
 //! master writes is exactly what the window shows. Every frame is reconstructed, whatever
 //! the view, so that the temporal history and the accumulation stay complete when the user
@@ -13,11 +21,13 @@ use std::sync::{Arc, RwLock};
 
 use glam::Vec3;
 use gridlight_actors::sink::ShownFrame;
-use gridlight_actors::state::SceneState;
+use gridlight_actors::state::{SceneState, StateVersion};
+use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::assets::Assets;
-use crate::reconstruct::gbuffer::{GBufferError, GBufferSource};
+use crate::reconstruct::emission::area_mean_emission;
+use crate::reconstruct::gbuffer::{GBuffer, GBufferError, GBufferSource};
 use crate::reconstruct::{
     Backend, FrameInputs, ReconstructError, ReconstructParams, Reconstructor,
 };
@@ -55,6 +65,12 @@ pub struct Composer {
     params: ReconstructParams,
     backend: Backend,
     reconstructor: Option<Reconstructor>,
+    /// The shown frame's radiance divided by the G-buffer albedo (reused between frames).
+    demodulated: Vec<Vec3>,
+    /// The last composed frame's state version.
+    last_version: Option<StateVersion>,
+    /// The G-buffer of the state being accumulated, its emission as pixel area means.
+    converging: Option<(StateVersion, Arc<GBuffer>)>,
 }
 
 impl Composer {
@@ -67,7 +83,15 @@ impl Composer {
     ) -> Result<Self, ComposeError> {
         params.validate()?;
         let source = GBufferSource::new(assets, state, backend)?;
-        Ok(Self { gbuffers: Arc::new(RwLock::new(source)), params, backend, reconstructor: None })
+        Ok(Self {
+            gbuffers: Arc::new(RwLock::new(source)),
+            params,
+            backend,
+            reconstructor: None,
+            demodulated: Vec::new(),
+            last_version: None,
+            converging: None,
+        })
     }
 
     /// The G-buffer source, whose render scene is the last composed frame's (for picking).
@@ -84,15 +108,20 @@ impl Composer {
     pub fn compose(&mut self, frame: &ShownFrame, view: View) -> Result<Composed, ComposeError> {
         let res = frame.state.resolution;
         let (width, height) = (res.width, res.height);
+        let g = self.gbuffers.write().unwrap_or_else(|p| p.into_inner()).get(&frame.state)?;
+        let g = self.for_accumulation(g, frame.state.version);
+        if frame.current.len() != g.albedo.len() {
+            return Err(ComposeError::Size { width, height });
+        }
+        demodulate(&frame.current, &g.albedo, &mut self.demodulated);
         let reconstructor = match &mut self.reconstructor {
             Some(r) => r,
             empty => empty.insert(Reconstructor::new(width, height, self.params, self.backend)?),
         };
-        let g = self.gbuffers.write().unwrap_or_else(|p| p.into_inner()).get(&frame.state)?;
         let inputs = FrameInputs {
             frame: frame.frame,
             state_version: frame.state.version,
-            radiance: &frame.current,
+            radiance: &self.demodulated,
             mask: &frame.current_mask,
             gbuffer: &g,
         };
@@ -108,7 +137,7 @@ impl Composer {
         let planes = ViewInputs {
             width,
             height,
-            radiance: &frame.current,
+            radiance: &self.demodulated,
             mask: &frame.current_mask,
             albedo: &g.albedo,
             emission: &g.emission,
@@ -121,6 +150,40 @@ impl Composer {
                 .ok_or(ComposeError::Size { width, height })?;
         Ok(Composed { width, height, rgba, linear: None })
     }
+}
+
+impl Composer {
+    /// From the second frame of a scene state on (accumulation, which converges), the
+    /// G-buffer with each pixel's directly seen emission averaged over its area
+    /// (`reconstruct::emission`), made once per state; the first frame of a state (while
+    /// interacting) keeps the centre's, which costs nothing extra.
+    fn for_accumulation(&mut self, g: Arc<GBuffer>, version: StateVersion) -> Arc<GBuffer> {
+        let accumulating = self.last_version.replace(version) == Some(version);
+        if !accumulating {
+            return g;
+        }
+        if let Some((v, converging)) = &self.converging {
+            if *v == version {
+                return Arc::clone(converging);
+            }
+        }
+        let mut area = (*g).clone();
+        let source = self.gbuffers.read().unwrap_or_else(|p| p.into_inner());
+        let n = area_mean_emission(&mut area, source.scene());
+        tracing::debug!(version, pixels = n, "emission averaged over pixel areas");
+        let area = Arc::new(area);
+        self.converging = Some((version, Arc::clone(&area)));
+        area
+    }
+}
+
+/// `out[i] = radiance[i] / albedo[i]`: what reconstruction filters (paper §4.3.1). The
+/// G-buffer's albedo is clamped away from zero where it comes from; the floor here only
+/// keeps a degenerate plane from making infinities.
+pub fn demodulate(radiance: &[Vec3], albedo: &[Vec3], out: &mut Vec<Vec3>) {
+    const FLOOR: f32 = 1e-6;
+    out.clear();
+    out.par_extend(radiance.par_iter().zip(albedo).map(|(l, a)| *l / a.max(Vec3::splat(FLOOR))));
 }
 
 #[cfg(test)]
@@ -165,6 +228,28 @@ mod tests {
         for &i in &hit_holes {
             assert_eq!(partial.rgba[i], [0, 0, 0, 255], "pixel {i}: a hole in the partial view");
             assert_ne!(last.rgba[i], [0, 0, 0, 255], "pixel {i}: filled in the final view");
+        }
+    }
+
+    #[test]
+    fn a_fully_covered_accumulated_frame_is_the_radiance_sent_plus_emission() {
+        // Demodulating by the G-buffer albedo and remodulating by it cancel: the final
+        // colour of an accumulating frame with every pixel covered is what workers sent.
+        let (assets, state) = cornell();
+        let mut c =
+            Composer::new(assets, &state, ReconstructParams::default(), Backend::Cpu).unwrap();
+        let g = c.gbuffers.write().unwrap().get(&state).unwrap();
+        let mut f = frame(&state, |_| true);
+        f.current = (0..g.len()).map(|i| Vec3::new(0.1, 0.2, 0.3) * (1 + i % 7) as f32).collect();
+        c.compose(&f, View::Final).unwrap(); // the first frame of a state is filtered
+        f.frame = 2;
+        let out = c.compose(&f, View::Final).unwrap().linear.unwrap();
+        // Accumulating: the emission is the pixel-area mean (`reconstruct::emission`).
+        let area = Arc::clone(&c.converging.as_ref().expect("an accumulating G-buffer").1);
+        for (i, got) in out.iter().enumerate() {
+            let want = f.current[i] + area.emission[i];
+            let err = (*got - want).abs().max_element();
+            assert!(err <= 1e-5 * want.max_element().max(1.0), "pixel {i}: {got} vs {want}");
         }
     }
 

@@ -47,6 +47,8 @@ pub struct Summary {
     pub dropped_late: u64,
     pub dropped_duplicate: u64,
     pub dropped_unknown: u64,
+    /// Results used in shown frames ÷ results returned (accepted or late); `null` before any.
+    pub useful_fraction: Option<f64>,
     pub max_workers: u64,
     /// Most workers paused at once (their desks' owners were active).
     pub max_paused_workers: u64,
@@ -131,6 +133,7 @@ impl HeadlessSink {
         sum.dropped_late = s.dropped_late;
         sum.dropped_duplicate = s.dropped_duplicate;
         sum.dropped_unknown = s.dropped_unknown;
+        sum.useful_fraction = s.useful_fraction;
         sum.max_workers = sum.max_workers.max(s.workers);
         sum.max_paused_workers = sum.max_paused_workers.max(s.paused_workers);
         for p in &s.paused {

@@ -2,8 +2,10 @@
 //!
 //! It accepts a result only for a frame not yet displayed and a (frame, set) handed out
 //! to that connection and not yet answered; everything else is dropped and counted.
-//! It reports each frame's progress (Q_t's numerator) to the display and hands a frame
-//! over, once, when the display closes it.
+//! It reports each frame's progress (Q_t's numerator) to the display: when it is scheduled,
+//! when its first job is handed out (the start of the frame's computation, from which the
+//! paper's heuristic measures its time) and with every result; and hands a frame over,
+//! once, when the display closes it.
 
 use std::sync::Arc;
 
@@ -40,6 +42,8 @@ pub struct FrameProgress {
     pub state_version: StateVersion,
     pub back: u32,
     pub total: u32,
+    /// A job of the frame was handed out: its computation has started.
+    pub started: bool,
 }
 
 /// The frame table and where progress goes.
@@ -74,16 +78,8 @@ impl Handler<FrameScheduled> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: FrameScheduled, ctx: &mut Context<Self>) {
         self.guarded(ctx, |a| {
-            let version = msg.state.version;
             a.table.open(msg.frame, msg.state);
-            if let Some((back, total)) = a.table.progress(msg.frame) {
-                a.progress_to.do_send(FrameProgress {
-                    frame: msg.frame,
-                    state_version: version,
-                    back,
-                    total,
-                });
-            }
+            a.report_progress(msg.frame);
         });
     }
 }
@@ -93,9 +89,13 @@ impl Handler<JobsHandedOut> for Assembler {
     fn handle(&mut self, msg: JobsHandedOut, ctx: &mut Context<Self>) {
         self.guarded(ctx, |a| {
             for (frame, set) in msg.jobs {
+                let first = !a.table.started(frame);
                 if a.table.handed_out(frame, set, msg.conn) {
                     tracing::error!(frame, set, "a job was handed out twice");
                     Counters::add(&a.counters.jobs_handed_twice, 1);
+                }
+                if first {
+                    a.report_progress(frame);
                 }
             }
         });
@@ -112,7 +112,14 @@ impl Handler<ResultArrived> for Assembler {
             match verdict {
                 Verdict::Accepted { back, total } => {
                     Counters::add(&c.results_accepted, 1);
-                    a.progress_to.do_send(FrameProgress { frame, state_version, back, total });
+                    let started = true;
+                    a.progress_to.do_send(FrameProgress {
+                        frame,
+                        state_version,
+                        back,
+                        total,
+                        started,
+                    });
                 }
                 Verdict::Late => {
                     Counters::add(&c.dropped_late, 1);
@@ -145,6 +152,16 @@ impl Handler<InjectPanic> for Assembler {
 }
 
 impl Assembler {
+    /// Tells the display how far an open frame is.
+    fn report_progress(&self, frame: FrameNo) {
+        if let (Some((back, total)), Some(state_version)) =
+            (self.table.progress(frame), self.table.version(frame))
+        {
+            let started = self.table.started(frame);
+            self.progress_to.do_send(FrameProgress { frame, state_version, back, total, started });
+        }
+    }
+
     /// Runs a handler body; a panic restarts the table (frames in flight are lost and
     /// will be skipped, displayed frames stay refused) after the policy's back-off.
     fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self)) {

@@ -31,7 +31,7 @@ use crate::protocol::{
     AssetHash, FrameNo, JobResult, MasterMsg, PauseReason, SetNo, WorkerMsg, ASSET_CHUNK_LEN,
     PROTOCOL_VERSION,
 };
-use crate::scheduler::{JobsAssigned, WorkerLeft, WorkerReady};
+use crate::scheduler::{JobAnswered, JobsAssigned, WorkerLeft, WorkerReady};
 use crate::sets::SetTable;
 use crate::state::StateVersion;
 use crate::stats::Counters;
@@ -73,6 +73,8 @@ pub struct ConnectionConfig {
 pub struct ConnectionLinks {
     pub ready_to: Recipient<WorkerReady>,
     pub left_to: Recipient<WorkerLeft>,
+    /// The scheduler measures each worker's job time from its answers.
+    pub answered_to: Recipient<JobAnswered>,
     pub results_to: Recipient<ResultArrived>,
     pub ended_to: Recipient<ConnectionEnded>,
 }
@@ -421,6 +423,8 @@ impl Connection {
                 self.remember_answered(key);
                 self.counters.workers_table.heard(self.id, 1);
                 self.counters.workers_table.timed(self.id, r.render_us);
+                let (frame, set) = key;
+                self.links.answered_to.do_send(JobAnswered { conn: self.id, frame, set });
                 self.links.results_to.do_send(ResultArrived { conn: self.id, result: r });
             }
             None if self.answered_set.contains(&key) => {

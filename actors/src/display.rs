@@ -22,7 +22,7 @@ use crate::frame_table::ClosedFrame;
 use crate::protocol::FrameNo;
 use crate::scheduler::{FrameDisplayed, FramesAbandoned, FramesOutdated};
 use crate::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
-use crate::stats::{Counters, FrameStats};
+use crate::stats::{useful_fraction, Counters, FrameStats};
 use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
 
@@ -66,6 +66,9 @@ struct Pending {
     back: u32,
     total: u32,
     scheduled_at: Instant,
+    /// Its first job was handed out: the start of its computation, from which the
+    /// heuristic measures the frame's time (paper §4.3).
+    started_at: Option<Instant>,
 }
 
 /// Pacing, the frames being waited on, accumulation and the sink.
@@ -186,7 +189,11 @@ impl Handler<FrameProgress> for Display {
             back: 0,
             total: msg.total,
             scheduled_at: now,
+            started_at: None,
         });
+        if msg.started && p.started_at.is_none() {
+            p.started_at = Some(now);
+        }
         p.back = p.back.max(msg.back);
         p.total = msg.total;
         self.evaluate(ctx);
@@ -259,7 +266,16 @@ impl Display {
             return;
         }
         let Some((&frame, &p)) = self.pending.iter().next() else { return };
-        let start = p.scheduled_at.max(self.last_close_at);
+        // The heuristic times a frame from the start of its computation, so frames that
+        // were computed side by side and complete together are not judged by the instant
+        // between their displays (a frame after such a burst would be skipped at once, its
+        // results all late). A fixed rate, and a frame not started yet, count from the
+        // later of its scheduling and the previous display.
+        let queued = p.scheduled_at.max(self.last_close_at);
+        let start = match (self.pacing, p.started_at) {
+            (Pacing::Heuristic(_), Some(started)) => started,
+            _ => queued,
+        };
         let elapsed = start.elapsed();
         let outdated = frame < self.outdated_before;
         let abandoned = frame < self.abandoned_before || outdated;
@@ -336,7 +352,10 @@ impl Display {
                             return act.restart_after(&msg, ctx);
                         }
                     }
-                    _ => {
+                    other => {
+                        if let Ok(Some(closed)) = other {
+                            Counters::add(&act.counters.results_unused, u64::from(closed.back));
+                        }
                         // The skipped frame's time becomes the last frame's time, so that
                         // when workers slow down I_max grows until frames complete again
                         // (otherwise a fast past would make every frame skip forever).
@@ -360,6 +379,12 @@ impl Display {
         self.accum.add(version);
         self.shown += 1;
         let c = &self.counters;
+        Counters::add(&c.results_used, u64::from(closed.back));
+        let (used, accepted, late) = (
+            Counters::get(&c.results_used),
+            Counters::get(&c.results_accepted),
+            Counters::get(&c.dropped_late),
+        );
         let mut stats = FrameStats {
             frame: closed.frame,
             state_version: version,
@@ -370,7 +395,7 @@ impl Display {
             wait_ms: elapsed.as_secs_f64() * 1e3,
             shown_at_ms: self.started.elapsed().as_secs_f64() * 1e3,
             skipped: std::mem::take(&mut self.skipped_since_show),
-            dropped_late: Counters::get(&c.dropped_late),
+            dropped_late: late,
             dropped_duplicate: Counters::get(&c.dropped_duplicate),
             dropped_unknown: Counters::get(&c.dropped_unknown),
             workers: Counters::get(&c.workers),
@@ -386,6 +411,9 @@ impl Display {
             accumulated_frames: self.accum.frames(),
             edits_at: c.edits.shown(version),
             edit_latency_ms: Vec::new(),
+            results_used: used,
+            results_returned: accepted + late,
+            useful_fraction: useful_fraction(used, accepted, late),
         };
         stats.stamp_edit_latency(Instant::now());
         let frame = PackedShownFrame {

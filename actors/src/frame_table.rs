@@ -178,6 +178,16 @@ impl FrameTable {
         })
     }
 
+    /// Whether any set of an open frame was handed out: its computation has started.
+    pub fn started(&self, frame: FrameNo) -> bool {
+        self.frames.get(&frame).is_some_and(|s| s.holder.iter().any(Option::is_some))
+    }
+
+    /// The state version of an open frame.
+    pub fn version(&self, frame: FrameNo) -> Option<StateVersion> {
+        self.frames.get(&frame).map(|s| s.state.version)
+    }
+
     /// Jobs back and total of an open frame.
     pub fn progress(&self, frame: FrameNo) -> Option<(u32, u32)> {
         self.frames.get(&frame).map(|s| (s.back, s.holder.len() as u32))
@@ -243,7 +253,9 @@ mod tests {
     fn a_second_hand_out_of_one_set_is_reported() {
         let mut t = table();
         t.open(0, state(3));
+        assert!(!t.started(0));
         assert!(!t.handed_out(0, 1, 7));
+        assert!(t.started(0) && t.version(0) == Some(3));
         assert!(t.handed_out(0, 1, 8), "a job handed out twice went unnoticed");
         assert!(!t.handed_out(9, 1, 7), "a frame not in the table cannot be judged");
     }

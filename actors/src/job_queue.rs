@@ -10,8 +10,12 @@
 //! a frame before its last jobs return, and with one fixed order the same sets (and so the
 //! same pixels) would be the ones missing in every frame, so accumulation would never fill
 //! them while the view is static.
+//!
+//! Only a frame's `quota` of sets is queued (all S unless set): the jobs the display can use
+//! (`handout_plan`). The frame window can be widened so that a large grid's credits can all
+//! be served from frames in flight.
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
 use crate::protocol::{FrameNo, SetNo};
@@ -36,9 +40,15 @@ pub struct NewFrame {
 #[derive(Debug)]
 pub struct JobQueue {
     sets: u32,
+    /// Sets queued per frame, `1..=sets`.
+    quota: u32,
     threshold: usize,
+    /// Frames open at most, from the threshold; `window` may widen it.
+    base_frames_open: u64,
     max_frames_open: u64,
     queue: VecDeque<Job>,
+    /// Sets queued so far (quota and replacements) and the state of every open frame.
+    opened: BTreeMap<FrameNo, (u32, Arc<SceneState>)>,
     /// Number the next scheduled frame gets.
     next_frame: FrameNo,
     /// Frames below this were displayed (shown or skipped).
@@ -55,9 +65,12 @@ impl JobQueue {
         let max_frames_open = threshold.div_ceil(sets as usize) as u64 + 2;
         Self {
             sets,
+            quota: sets,
             threshold,
+            base_frames_open: max_frames_open,
             max_frames_open,
             queue: VecDeque::new(),
+            opened: BTreeMap::new(),
             next_frame: first_frame,
             first_open: first_frame,
             state,
@@ -79,7 +92,19 @@ impl JobQueue {
         let version = self.state.version;
         let before = self.queue.len();
         self.queue.retain(|j| j.state.version >= version);
+        // Their frames get no more sets either (`queue_more`).
+        self.opened.retain(|_, (_, state)| state.version >= version);
         before - self.queue.len()
+    }
+
+    /// Frames queued from now on get only `quota` of their sets (at least 1, at most S).
+    pub fn set_quota(&mut self, quota: u32) {
+        self.quota = quota.clamp(1, self.sets);
+    }
+
+    /// Lets up to `frames` frames be open at once (never fewer than the threshold needs).
+    pub fn set_frame_window(&mut self, frames: u64) {
+        self.max_frames_open = frames.max(self.base_frames_open);
     }
 
     /// The state new frames get.
@@ -91,19 +116,46 @@ impl JobQueue {
     /// window allows); returns the frames added.
     pub fn top_up(&mut self) -> Vec<NewFrame> {
         let mut added = Vec::new();
-        while self.queue.len() < self.threshold
-            && self.next_frame - self.first_open < self.max_frames_open
-        {
-            let frame = self.next_frame;
-            self.next_frame += 1;
-            let first = first_set(frame, self.sets);
-            for i in 0..self.sets {
-                let set = (first + i) % self.sets;
-                self.queue.push_back(Job { frame, set, state: self.state.clone() });
-            }
-            added.push(NewFrame { frame, state: self.state.clone() });
+        while self.queue.len() < self.threshold {
+            let Some(f) = self.open_frame() else { break };
+            added.push(f);
         }
         added
+    }
+
+    /// Adds one frame whatever the threshold, if the frame window allows (a worker whose
+    /// result would be late for every queued frame can be in time for a later one).
+    pub fn open_frame(&mut self) -> Option<NewFrame> {
+        if self.next_frame - self.first_open >= self.max_frames_open {
+            return None;
+        }
+        let frame = self.next_frame;
+        self.next_frame += 1;
+        let first = first_set(frame, self.sets);
+        for i in 0..self.quota {
+            let set = (first + i) % self.sets;
+            self.queue.push_back(Job { frame, set, state: self.state.clone() });
+        }
+        self.opened.insert(frame, (self.quota, self.state.clone()));
+        Some(NewFrame { frame, state: self.state.clone() })
+    }
+
+    /// Queues up to `n` more sets of an open frame, ones never queued before (a worker left
+    /// holding jobs of it: other sets take their place, the lost ones are never redone);
+    /// returns how many were queued. A frame never gets more than S sets.
+    pub fn queue_more(&mut self, frame: FrameNo, n: u32) -> u32 {
+        let sets = self.sets;
+        let Some((queued, state)) = self.opened.get_mut(&frame) else { return 0 };
+        let more = n.min(sets - *queued);
+        let first = first_set(frame, sets);
+        // Behind the frame's own jobs, before later frames'.
+        let at = self.queue.iter().position(|j| j.frame > frame).unwrap_or(self.queue.len());
+        for i in 0..more {
+            let set = (first + *queued + i) % sets;
+            self.queue.insert(at + i as usize, Job { frame, set, state: state.clone() });
+        }
+        *queued += more;
+        more
     }
 
     /// Takes up to `n` jobs from the front.
@@ -112,10 +164,24 @@ impl JobQueue {
         self.queue.drain(..n).collect()
     }
 
+    /// The frames that have queued jobs, oldest first.
+    pub fn frames(&self) -> Vec<FrameNo> {
+        let mut frames: Vec<FrameNo> = self.queue.iter().map(|j| j.frame).collect();
+        frames.dedup(); // jobs are queued frame after frame
+        frames
+    }
+
+    /// Takes the first queued job of `frame`.
+    pub fn take_from(&mut self, frame: FrameNo) -> Option<Job> {
+        let i = self.queue.iter().position(|j| j.frame == frame)?;
+        self.queue.remove(i)
+    }
+
     /// `frame` was displayed (shown or skipped): its queued jobs and those of every
     /// earlier frame are discarded. Returns how many were dropped.
     pub fn frame_displayed(&mut self, frame: FrameNo) -> usize {
         self.first_open = self.first_open.max(frame + 1);
+        self.opened.retain(|f, _| *f > frame);
         let before = self.queue.len();
         self.queue.retain(|j| j.frame > frame);
         before - self.queue.len()
@@ -260,6 +326,60 @@ pub(crate) mod tests {
         // Discarding again finds nothing: the current version's jobs stay.
         q.top_up();
         assert_eq!(q.discard_outdated(), 0);
+        assert_eq!(q.queue_more(0, 1), 0, "a frame of the old state gets no more sets");
+    }
+
+    #[test]
+    fn a_quota_queues_that_many_different_sets_of_each_frame() {
+        let mut q = JobQueue::new(8, 8, state(1), 0);
+        q.set_quota(3);
+        q.top_up();
+        assert_eq!(q.frames(), vec![0, 1, 2]);
+        let first: Vec<Job> = (0..3).filter_map(|_| q.take_from(0)).collect();
+        assert_eq!(first.len(), 3);
+        assert!(q.take_from(0).is_none(), "a fourth set of frame 0 was queued");
+        let mut sets: Vec<SetNo> = first.iter().map(|j| j.set).collect();
+        sets.dedup();
+        assert_eq!(sets.len(), 3);
+        assert_eq!(q.take_from(2).map(|j| j.frame), Some(2), "a later frame can be served first");
+        q.set_quota(99);
+        assert_eq!(q.quota, 8, "never more than S");
+    }
+
+    #[test]
+    fn sets_lost_with_a_worker_are_replaced_by_sets_never_queued() {
+        let mut q = JobQueue::new(4, 4, state(1), 0);
+        q.set_quota(2);
+        q.top_up();
+        let mut sets: Vec<SetNo> = (0..2).filter_map(|_| q.take_from(0)).map(|j| j.set).collect();
+        assert_eq!(q.queue_more(0, 1), 1);
+        let next = q.take(1);
+        assert_eq!(next[0].frame, 0, "the replacement comes before later frames");
+        assert_eq!(q.queue_more(0, 5), 1, "only S sets per frame");
+        sets.extend(next.iter().map(|j| j.set));
+        sets.extend(q.take_from(0).map(|j| j.set));
+        sets.sort_unstable();
+        assert_eq!(sets, vec![0, 1, 2, 3], "every set once");
+        q.frame_displayed(0);
+        assert_eq!(q.queue_more(0, 1), 0, "a displayed frame gets nothing");
+    }
+
+    #[test]
+    fn the_frame_window_widens_for_a_large_grid_but_never_narrows() {
+        let mut q = JobQueue::new(2, 4, state(1), 0);
+        q.set_frame_window(10);
+        for _ in 0..100 {
+            q.top_up();
+            q.take(100);
+        }
+        assert_eq!(q.next_frame(), 10);
+        q.set_frame_window(1);
+        q.frame_displayed(9);
+        for _ in 0..100 {
+            q.top_up();
+            q.take(100);
+        }
+        assert_eq!(q.next_frame() - q.first_open(), 4, "the threshold's window stays");
     }
 
     #[test]

@@ -11,8 +11,8 @@
 //!   [`packing`] (RGB9E5), [`sets`] (pixel sets), [`discovery`] (the LAN announcement).
 //! - Values: [`state`] (scene state), [`edit`] and [`script`] (changes to it).
 //! - Actors, one per file: [`listener`], [`connection`], [`scheduler`], [`assembler`],
-//!   [`display`], [`scene_holder`], [`announcer`]; their pure logic: [`job_queue`], [`frame_table`],
-//!   [`wait_heuristic`], [`accumulate`]; [`supervisor`] is the restart policy.
+//!   [`display`], [`scene_holder`], [`announcer`]; their pure logic: [`job_queue`], [`handout_plan`],
+//!   [`frame_table`], [`wait_heuristic`], [`accumulate`]; [`supervisor`] is the restart policy.
 //! - Entry point: [`master::start`] → [`master::MasterHandle`]; frames leave through a
 //!   [`sink::FrameSink`]; [`stats`], [`edit_latency`] and [`asset_store`] support them.
 
@@ -29,6 +29,7 @@ pub mod display;
 pub mod edit;
 pub mod edit_latency;
 pub mod frame_table;
+pub mod handout_plan;
 pub mod integrity;
 pub mod job_queue;
 pub mod listener;

@@ -27,7 +27,7 @@ use crate::frame_table::ConnId;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
 use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
 use crate::scene_holder::{ApplyEdit, CurrentState, EditMade, PlayScript, SceneHolder};
-use crate::scheduler::{Scheduler, SchedulerLinks};
+use crate::scheduler::{PacingChanged, Scheduler, SchedulerLinks};
 use crate::sets::SetTable;
 use crate::sink::FrameSink;
 use crate::state::{SceneState, StateVersion};
@@ -274,6 +274,7 @@ fn wire(
             config.sets.sets,
             threshold,
             state.clone(),
+            config.pacing,
             links,
             counters.clone(),
             config.restart,
@@ -298,6 +299,7 @@ fn wire(
     let links = ConnectionLinks {
         ready_to: scheduler.clone().recipient(),
         left_to: scheduler.clone().recipient(),
+        answered_to: scheduler.clone().recipient(),
         results_to: assembler.clone().recipient(),
         ended_to: listener_addr.clone().recipient(),
     };
@@ -319,7 +321,9 @@ impl MasterHandle {
     /// Changes the pacing (wait heuristic bounds or frame rate) from now on; a bad value
     /// is refused with the reason and the pacing stays as it was.
     pub fn set_pacing(&self, pacing: Pacing) -> Result<(), MasterError> {
-        block_on(self.display.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)
+        block_on(self.display.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)?;
+        self.scheduler.do_send(PacingChanged(pacing));
+        Ok(())
     }
 
     /// The workers connected now, with their rates.

@@ -72,7 +72,9 @@ use crate::state::{SceneState, StateVersion};
 /// 4: the tag is keyed BLAKE3 instead of HMAC-SHA256 (the key derivation is unchanged).
 /// 5: the tag is 128 bits, and XXH3-128 when no secret is configured.
 /// 6: `WorkerMsg::Paused` / `WorkerMsg::Resumed` (workers that give way to their desk's owner).
-pub const PROTOCOL_VERSION: u32 = 6;
+/// 7: results carry reflected radiance, no longer divided by the albedo (the master
+///    demodulates by its G-buffer's); an older worker's pixels would be wrong.
+pub const PROTOCOL_VERSION: u32 = 7;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
@@ -121,7 +123,10 @@ pub struct AssetEntry {
     pub len: u64,
 }
 
-/// Radiance of a set's pixels, in set order, packed (DESIGN.md decision 2).
+/// Radiance of a set's pixels, in set order, packed (DESIGN.md decision 2): the mean over
+/// each pixel's samples of the radiance minus what the primary hit emits, *not* divided by
+/// the albedo. The master divides it by its G-buffer's albedo and multiplies that same
+/// albedo back in after reconstruction, so the two cancel exactly.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum PackedRadiance {
     /// Shared-exponent RGB9E5, one `u32` per pixel (non-negative, finite by construction).

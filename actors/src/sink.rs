@@ -26,7 +26,8 @@ pub struct ShownFrame {
     pub frame: FrameNo,
     /// The scene state the frame was rendered with.
     pub state: Arc<SceneState>,
-    /// This frame's results only: demodulated radiance per pixel (zero where not covered).
+    /// This frame's results only, as workers sent them: reflected radiance per pixel, not
+    /// demodulated (zero where not covered).
     pub current: Vec<Vec3>,
     /// Pixels covered by a result of this frame.
     pub current_mask: Vec<bool>,

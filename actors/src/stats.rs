@@ -29,6 +29,11 @@ pub struct Counters {
     pub dropped_unknown: AtomicU64,
     /// Results accepted into a frame.
     pub results_accepted: AtomicU64,
+    /// Results in frames that were shown (the display adds each shown frame's `jobs_back`):
+    /// the useful ones. Accepted results of skipped frames are not used.
+    pub results_used: AtomicU64,
+    /// Results accepted into frames that were then skipped: never used.
+    pub results_unused: AtomicU64,
     /// Jobs handed out by the scheduler.
     pub jobs_handed_out: AtomicU64,
     /// Queued jobs discarded because the scene state changed before they were handed out.
@@ -136,6 +141,13 @@ pub struct FrameStats {
     /// Edit-to-display latency of each of those edits, in milliseconds: from the edit
     /// (input event or scripted time) to the moment this frame was shown.
     pub edit_latency_ms: Vec<f64>,
+    /// Results so far in shown frames (this one included).
+    pub results_used: u64,
+    /// Results so far that came back for a job (accepted, or dropped as late).
+    pub results_returned: u64,
+    /// `results_used / results_returned`: the share of the grid's returned work that reached
+    /// an image (DESIGN.md decision 8); `None` (JSON `null`) before any result returned.
+    pub useful_fraction: Option<f64>,
 }
 
 impl FrameStats {
@@ -148,6 +160,13 @@ impl FrameStats {
             .map(|at| now.saturating_duration_since(*at).as_secs_f64() * 1e3)
             .collect();
     }
+}
+
+/// The useful fraction of returned results: used ÷ (accepted + dropped as late); duplicates
+/// and unknown results answer no job and do not count. `None` when nothing returned.
+pub fn useful_fraction(used: u64, accepted: u64, late: u64) -> Option<f64> {
+    let returned = accepted + late;
+    (returned > 0).then(|| used as f64 / returned as f64)
 }
 
 #[cfg(test)]
@@ -171,5 +190,12 @@ mod tests {
         c.note_rejection("auth");
         c.note_rejection("full");
         assert_eq!(c.rejections().into_iter().collect::<Vec<_>>(), [("auth", 2), ("full", 1)]);
+    }
+
+    #[test]
+    fn the_useful_fraction_counts_late_and_unused_results_as_waste() {
+        assert_eq!(useful_fraction(0, 0, 0), None);
+        assert_eq!(useful_fraction(30, 40, 10), Some(0.6), "10 late, 10 in skipped frames");
+        assert_eq!(useful_fraction(8, 8, 0), Some(1.0));
     }
 }

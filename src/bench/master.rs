@@ -106,26 +106,13 @@ fn measure(
     config.secret = secret.map(|(_, bytes)| bytes.to_vec());
     let handle = master::start(config, bench_state(), AssetStore::new(), Box::new(CountingSink))
         .context("starting the master")?;
-    let mut workers = Children::new();
-    let mut cmd = Command::new(exe);
-    cmd.args(["worker", "--null-render", "--master"])
-        .arg(handle.local_addr().to_string())
-        .args([
-            "--threads",
-            &connections.to_string(),
-            "--pipeline",
-            &opts.pipeline.to_string(),
-            "--name",
-            "bench",
-        ])
-        .arg("--cache-dir")
-        .arg(cache)
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::null());
-    if let Some((file, _)) = secret {
-        cmd.arg("--secret-file").arg(file);
-    }
-    workers.spawn(cmd).context("starting the null-render worker")?;
+    let spec = NullWorkers {
+        connections,
+        pipeline: opts.pipeline,
+        delay_ms: 0,
+        secret_file: secret.map(|(file, _)| file.to_path_buf()),
+    };
+    let workers = spawn_null_workers(exe, handle.local_addr(), cache, &spec)?;
 
     if !handle.wait_for_frames(WARMUP_FRAMES, WARMUP_TIMEOUT) {
         bail!("{connections} connections: fewer than {WARMUP_FRAMES} frames in {WARMUP_TIMEOUT:?}");
@@ -202,6 +189,55 @@ fn process_cpu_us() -> f64 {
     }
     let us = |t: libc::timeval| t.tv_sec as f64 * 1e6 + t.tv_usec as f64;
     us(usage.ru_utime) + us(usage.ru_stime)
+}
+
+/// What [`spawn_null_workers`] starts.
+#[derive(Debug, Clone)]
+pub struct NullWorkers {
+    /// Connections (each one worker) of the single child process.
+    pub connections: u32,
+    /// Jobs each connection holds (k).
+    pub pipeline: u32,
+    /// Simulated render time per job; 0 answers at once on the connection's task.
+    pub delay_ms: u32,
+    /// The shared secret the workers prove, if any.
+    pub secret_file: Option<std::path::PathBuf>,
+}
+
+/// Starts one child `gridlight worker --null-render` process with `spec.connections`
+/// connections to `master`; it is killed when the returned [`Children`] is dropped.
+pub fn spawn_null_workers(
+    exe: &std::path::Path,
+    master: SocketAddr,
+    cache: &std::path::Path,
+    spec: &NullWorkers,
+) -> anyhow::Result<Children> {
+    let mut workers = Children::new();
+    let mut cmd = Command::new(exe);
+    cmd.args(["worker", "--null-render", "--master"])
+        .arg(master.to_string())
+        .args([
+            "--threads",
+            &spec.connections.to_string(),
+            "--pipeline",
+            &spec.pipeline.to_string(),
+            "--null-render-delay-ms",
+            &spec.delay_ms.to_string(),
+            "--name",
+            "bench",
+            // They stand for other machines: at idle priority the master would starve them.
+            "--priority",
+            "normal",
+        ])
+        .arg("--cache-dir")
+        .arg(cache)
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null());
+    if let Some(file) = &spec.secret_file {
+        cmd.arg("--secret-file").arg(file);
+    }
+    workers.spawn(cmd).context("starting the null-render worker")?;
+    Ok(workers)
 }
 
 /// A sink that drops frames: the benchmarks measure assembly, not output.

@@ -7,9 +7,11 @@
 //!   rate-limited links, beside the bandwidth bound.
 //! - [`owner_impact`]: a desk owner's CPU-bound program alone and beside a rendering
 //!   worker ([`busy_loop`] is that program).
+//! - [`waste`]: the useful fraction of returned results at each grid size.
 
 pub mod busy_loop;
 pub mod lan;
 pub mod master;
 pub mod owner_impact;
 pub mod trace;
+pub mod waste;

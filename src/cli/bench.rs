@@ -31,6 +31,9 @@ pub enum What {
     Master(super::bench_master::MasterArgs),
     /// Across hosts: network namespaces behind rate-limited links (needs root).
     Lan(super::bench_lan::LanArgs),
+    /// The useful fraction of returned results with null-render workers that take
+    /// `--job-ms` per job, at each grid size.
+    Waste(super::bench_waste::WasteArgs),
     /// Milliseconds per 640×480 frame of the full reconstruction pipeline, CPU and GPU.
     Reconstruct(ReconstructArgs),
     /// A desk owner's CPU-bound program beside a rendering worker, against alone.
@@ -108,6 +111,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         What::Lan(args) => super::bench_lan::run(args, global),
         What::OwnerImpact(args) => super::bench_owner::run_owner_impact(args, global),
         What::BusyLoop(args) => super::bench_owner::run_busy_loop(args),
+        What::Waste(args) => super::bench_waste::run(args, global),
     }
 }
 

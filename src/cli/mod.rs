@@ -13,6 +13,7 @@ pub mod bench;
 pub mod bench_lan;
 pub mod bench_master;
 pub mod bench_owner;
+pub mod bench_waste;
 pub mod demo;
 pub mod eval;
 pub mod master;

@@ -3,9 +3,8 @@
 //! This is also how gold-standard images are made. One std thread per core pulls blocks of
 //! pixels and renders all samples of a block before taking the next; each sample is one
 //! `render_pixels` call with one sample per pixel and the sample number as the frame, so
-//! the image does not depend on the thread count and the colour `albedo * radiance +
-//! emission` is exact per sample (averaging demodulated radiance over samples whose primary
-//! hits differ would not be). Colours accumulate in f64. The output format follows the
+//! the image does not depend on the thread count. The colour is `reflected + emission`
+//! (what workers send, plus what the master adds), never remodulated. Colours accumulate in f64. The output format follows the
 //! extension: `.png` is tonemapped sRGB, `.exr` is linear radiance.
 
 use std::path::PathBuf;
@@ -115,7 +114,7 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
 }
 
 /// Renders every pixel of `scene` with `spp` samples on `threads` threads and returns the
-/// mean colour (`albedo * radiance + emission`) per pixel, row-major, top row first.
+/// mean colour (`reflected + emission`) per pixel, row-major, top row first.
 /// `scene`'s state must have `render.spp == 1`; sample `s` is rendered as frame `s`.
 pub fn render_image(
     scene: &RenderScene,
@@ -144,7 +143,7 @@ pub fn render_image(
                     for sample in 0..spp {
                         render_pixels(scene, sample as u64, &pixels, &mut samples);
                         for (acc, p) in sum.iter_mut().zip(&samples) {
-                            *acc += (p.albedo * p.radiance + p.emission).as_dvec3();
+                            *acc += (p.reflected + p.emission).as_dvec3();
                         }
                         progress.inc(pixels.len() as u64);
                     }

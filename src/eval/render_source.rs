@@ -78,17 +78,19 @@ impl FrameSource for RenderSource {
         let state = self.state(view, self.base.render.spp);
         let samples = self.render(&state, frame)?;
         let g = GBuffer::from_samples(self.width(), self.height(), &samples, self.scale);
-        Ok(FrameData {
-            radiance: samples.iter().map(|s| s.radiance).collect(),
-            gbuffer: Arc::new(g),
-        })
+        // As the master does: what workers send, demodulated by the G-buffer's albedo, so
+        // that remodulating gives each pixel's mean colour back.
+        let reflected: Vec<Vec3> = samples.iter().map(|s| s.reflected).collect();
+        let mut radiance = Vec::new();
+        crate::compose::demodulate(&reflected, &g.albedo, &mut radiance);
+        Ok(FrameData { radiance, gbuffer: Arc::new(g) })
     }
 
     fn gold(&mut self, view: usize) -> anyhow::Result<Vec<glam::Vec3>> {
         let state = self.state(view, self.gold_spp);
         // A frame number no evaluation frame uses, so the gold samples are independent.
         let samples = self.render(&state, u64::MAX / 2)?;
-        Ok(samples.iter().map(|s| s.albedo * s.radiance + s.emission).collect())
+        Ok(samples.iter().map(|s| s.reflected + s.emission).collect())
     }
 }
 

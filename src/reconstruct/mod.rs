@@ -22,6 +22,7 @@ use rayon::prelude::*;
 pub mod bench;
 pub mod cpu;
 pub mod discontinuity;
+pub mod emission;
 mod fill;
 mod gaussian;
 pub mod gbuffer;

@@ -279,6 +279,7 @@ fn trace_path(
     }
     // Demodulate: radiance = (L - Le_direct) / albedo.
     out.radiance = indirect / out.albedo;
+    out.reflected = indirect;
     out
 }
 
@@ -374,6 +375,7 @@ fn render_pixels_kernel(
                 &mut stats.rays,
             );
             acc.radiance += s.radiance;
+            acc.reflected += s.reflected;
             acc.emission += s.emission;
             if index == 0 {
                 acc.albedo = s.albedo;
@@ -383,6 +385,7 @@ fn render_pixels_kernel(
             }
         }
         acc.radiance *= inv;
+        acc.reflected *= inv;
         acc.emission *= inv;
         out.push(acc);
     }
@@ -394,21 +397,15 @@ fn render_pixels_kernel(
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
     let (o, d) = primary_ray(scene, pixel);
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
-    match closest(scene, o, d) {
-        None => {
-            out.emission = escaped(scene, d);
-        }
+    let hit = closest(scene, o, d);
+    out.emission = seen_emission(scene, &hit, d);
+    match hit {
+        None => {}
         Some(Hit::Light(q, t)) => {
-            if -d.dot(q.normal) > 0.0 {
-                out.emission = q.radiance;
-            }
             out.normal = q.normal;
             out.position = o + d * t;
         }
         Some(Hit::Surface(s)) => {
-            if s.material.is_emissive() && -d.dot(s.ng) > 0.0 {
-                out.emission = s.material.emission;
-            }
             out.albedo = albedo_of(s.material, s.uv).max(Vec3::splat(MIN_ALBEDO));
             out.normal = s.ns;
             out.position = s.p;
@@ -416,6 +413,40 @@ pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
         }
     }
     out
+}
+
+/// Directly seen emission averaged over `count` points of `pixel`'s square (lens centre):
+/// what the pixel's samples see directly on average, where [`primary_hit`] sees its centre
+/// only. They differ on a pixel that an emitter's edge crosses, and not by noise: the
+/// Cornell box's light, a few pixels tall, came out 2 % too dark at 160×120 and 0.7–1 %
+/// too bright at 640×480 from centres alone. The points are a Hammersley set: `count`
+/// distinct rows and columns, so that an edge along a row or a column (the light's, seen
+/// from the front) is located to 1/`count` of a pixel, where an n×n grid locates it to 1/n
+/// (an 8×8 grid still left the light 1.6 % too bright).
+pub fn area_emission(scene: &RenderScene, pixel: u32, count: u32) -> Vec3 {
+    let width = scene.state().resolution.width.max(1);
+    let corner = Vec2::new((pixel % width) as f32, (pixel / width) as f32);
+    let count = count.max(1);
+    let mut sum = Vec3::ZERO;
+    for i in 0..count {
+        let x = (i as f32 + 0.5) / count as f32;
+        let y = (i.reverse_bits() as f64 / 4_294_967_296.0) as f32 + 0.5 / count as f32;
+        let (o, d) = scene.camera.ray(corner + Vec2::new(x, y.min(0.999_999)), Vec2::splat(0.5));
+        sum += seen_emission(scene, &closest(scene, o, d), d);
+    }
+    sum / count as f32
+}
+
+/// Emission a camera ray along `d` sees at its first hit (the environment if it escapes).
+fn seen_emission(scene: &RenderScene, hit: &Option<Hit>, d: Vec3) -> Vec3 {
+    match hit {
+        None => escaped(scene, d),
+        Some(Hit::Light(q, _)) if -d.dot(q.normal) > 0.0 => q.radiance,
+        Some(Hit::Surface(s)) if s.material.is_emissive() && -d.dot(s.ng) > 0.0 => {
+            s.material.emission
+        }
+        _ => Vec3::ZERO,
+    }
 }
 
 /// The G-buffer's camera ray through the centre of `pixel` (lens centre for thin lenses).

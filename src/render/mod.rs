@@ -36,8 +36,8 @@ use envmap::Environment;
 use lights::{AreaLight, Lights};
 
 pub use integrator::{
-    escaped_emission, pick, primary_hit, render_pixels, render_pixels_counted, RenderStats,
-    Strategy,
+    area_emission, escaped_emission, pick, primary_hit, render_pixels, render_pixels_counted,
+    RenderStats, Strategy,
 };
 
 /// Why a scene state cannot be rendered with the given assets.
@@ -71,12 +71,19 @@ pub enum RenderError {
     Camera(#[from] CameraError),
 }
 
-/// What the kernel returns for one pixel (DESIGN.md: the final colour is
-/// `albedo * radiance + emission`).
+/// What the kernel returns for one pixel: the mean colour of its samples is
+/// `reflected + emission` exactly; `albedo * radiance + emission` is exact for one sample
+/// only, since each sample is demodulated by the albedo of its own primary hit.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PixelSample {
     /// Demodulated: (L - emission) / albedo, averaged over the samples.
     pub radiance: Vec3,
+    /// Not demodulated: L - emission, averaged over the samples. What workers send: the
+    /// master divides it by its G-buffer's albedo and multiplies the same albedo back in,
+    /// so the two cancel exactly wherever a pixel's samples hit surfaces of different
+    /// albedos (demodulating each sample by its own hit and remodulating by the pixel
+    /// centre's made every edge between two albedos brighter: a/b + b/a > 2).
+    pub reflected: Vec3,
     /// Directly seen emission (the environment for escaping camera rays).
     pub emission: Vec3,
     /// Primary hit albedo (textured, clamped away from 0), 1 for escaping rays.

@@ -5,7 +5,8 @@
 //! at a time; the connection's async task only moves messages. The thread applies a new
 //! scene state (`RenderScene::set_state`) when a job names a version it has not rendered
 //! with yet, derives the job's pixels from the set number (pixel indices never travel),
-//! renders them, packs the demodulated radiance as RGB9E5 and tags the result with the
+//! renders them, packs the reflected radiance (not demodulated: the master divides by its
+//! own G-buffer's albedo, `crate::compose`) as RGB9E5 and tags the result with the
 //! connection's key (`gridlight_actors::integrity`).
 //!
 //! The thread lowers its own priority first (`priority`: `SCHED_IDLE` by default), so
@@ -202,7 +203,7 @@ impl Renderer {
                 render_pixels(scene, job.frame, pixels, &mut self.samples);
                 // A NaN would be a renderer bug: refuse it here rather than send it.
                 match gridlight_actors::packing::pack(
-                    &self.samples.iter().map(|s| s.radiance).collect::<Vec<_>>(),
+                    &self.samples.iter().map(|s| s.reflected).collect::<Vec<_>>(),
                 ) {
                     Ok(PackedRadiance::Rgb9e5(v)) => v,
                     Err(e) => {
