@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Edit-to-display latency of a scripted orbit (scenes/orbit.toml) with 2 local workers:
+# Edit-to-display latency of a scripted orbit (scenes/scripts/orbit.toml) with 2 local workers:
 # the headless demo plays the orbit, stats.jsonl holds `edit_latency_ms` per edit and
 # `shown_at_ms` per frame; this prints, per run and as medians over the runs, the median
 # and 95th percentile latency and the frame period while the camera moves.
@@ -29,7 +29,7 @@ run() { # name flags...
   rm -rf "$dir"
   # Ctrl-C (SIGINT) ends the demo cleanly, as a user would.
   timeout -s INT "$SECONDS_PER_RUN" "$BIN" demo --headless --workers 2 --frames 100000 \
-    --script scenes/orbit.toml --out "$dir" "$@" "${EXTRA[@]}" >/dev/null 2>&1 || true
+    --script scenes/scripts/orbit.toml --out "$dir" "$@" "${EXTRA[@]}" >/dev/null 2>&1 || true
   python3 - "$dir/stats.jsonl" "$name" <<'PY'
 import json, sys
 path, name = sys.argv[1], sys.argv[2]
