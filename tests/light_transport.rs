@@ -18,9 +18,10 @@ fn all_pixels(state: &SceneState) -> Vec<u32> {
     (0..state.resolution.pixels() as u32).collect()
 }
 
-/// Final colour as the master composes it.
+/// Final colour as the master composes it (it divides by and multiplies with the same
+/// G-buffer albedo, which cancel).
 fn colour(s: &PixelSample) -> Vec3 {
-    s.albedo * s.radiance + s.emission
+    s.reflected + s.emission
 }
 
 fn mean_colour(scene: &RenderScene, frame: u64, strategy: Strategy) -> Vec3 {
@@ -155,7 +156,7 @@ fn g_buffer_values_follow_the_demodulation_convention() {
     // The centre pixel sees the back wall (white) or a box (white).
     let centre = 12 * width + 12;
     let g = primary_hit(&scene, centre);
-    assert_eq!(g.radiance, Vec3::ZERO);
+    assert_eq!(g.reflected, Vec3::ZERO);
     assert_eq!(g.albedo, state.materials[0].base_color);
     assert!(g.object != u32::MAX);
     assert!((g.normal.length() - 1.0).abs() < 1e-4);
@@ -188,7 +189,7 @@ fn escaping_rays_report_the_environment_as_emission() {
     assert_eq!(s.object, u32::MAX);
     assert_eq!(s.albedo, Vec3::ONE);
     assert_eq!(s.normal, Vec3::ZERO);
-    assert_eq!(s.radiance, Vec3::ZERO);
+    assert_eq!(s.reflected, Vec3::ZERO);
     assert!((s.emission - Vec3::new(0.1, 0.2, 0.3)).length() < 1e-6);
 }
 

@@ -137,7 +137,7 @@ fn albedo_of(material: &MaterialData, uv: Vec2) -> Vec3 {
     }
 }
 
-/// One camera path: its demodulated radiance and G-buffer values.
+/// One camera path: its reflected radiance and G-buffer values.
 #[inline(always)]
 fn trace_path(
     scene: &RenderScene,
@@ -277,8 +277,6 @@ fn trace_path(
             break;
         }
     }
-    // Demodulate: radiance = (L - Le_direct) / albedo.
-    out.radiance = indirect / out.albedo;
     out.reflected = indirect;
     out
 }
@@ -374,7 +372,6 @@ fn render_pixels_kernel(
                 strategy,
                 &mut stats.rays,
             );
-            acc.radiance += s.radiance;
             acc.reflected += s.reflected;
             acc.emission += s.emission;
             if index == 0 {
@@ -384,7 +381,6 @@ fn render_pixels_kernel(
                 acc.object = s.object;
             }
         }
-        acc.radiance *= inv;
         acc.reflected *= inv;
         acc.emission *= inv;
         out.push(acc);
@@ -393,7 +389,7 @@ fn render_pixels_kernel(
     stats
 }
 
-/// G-buffer sample through the pixel centre (radiance zero).
+/// G-buffer sample through the pixel centre (reflected radiance zero).
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
     let (o, d) = primary_ray(scene, pixel);
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };

@@ -72,13 +72,10 @@ pub enum RenderError {
 }
 
 /// What the kernel returns for one pixel: the mean colour of its samples is
-/// `reflected + emission` exactly; `albedo * radiance + emission` is exact for one sample
-/// only, since each sample is demodulated by the albedo of its own primary hit.
+/// `reflected + emission` exactly.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PixelSample {
-    /// Demodulated: (L - emission) / albedo, averaged over the samples.
-    pub radiance: Vec3,
-    /// Not demodulated: L - emission, averaged over the samples. What workers send: the
+    /// L - emission, averaged over the samples, not demodulated. What workers send: the
     /// master divides it by its G-buffer's albedo and multiplies the same albedo back in,
     /// so the two cancel exactly wherever a pixel's samples hit surfaces of different
     /// albedos (demodulating each sample by its own hit and remodulating by the pixel
