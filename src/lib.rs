@@ -41,6 +41,7 @@ pub mod render;
 pub mod scene;
 pub mod shapes;
 pub mod signals;
+pub mod simgrid;
 pub mod view;
 pub mod window;
 pub mod worker;
