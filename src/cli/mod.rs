@@ -16,6 +16,7 @@ pub mod bench_owner;
 pub mod bench_waste;
 pub mod demo;
 pub mod eval;
+pub mod eval_paper;
 pub mod master;
 pub mod render;
 pub mod scenes;

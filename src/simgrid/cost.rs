@@ -26,6 +26,10 @@ pub struct CostModel {
     pub spp: u32,
     /// Jobs timed to make this model.
     pub jobs_measured: u32,
+    /// Every modelled time is multiplied by this: 1 for this machine's cores rendering the
+    /// cached frames' pixels; more for slower cores, or for jobs timed as if the frame
+    /// had more pixels than the cached one (see `eval paper`).
+    pub time_scale: f64,
 }
 
 /// The shortest job, as a share of the mean: a spread wider than 1 must not make a job free.
@@ -55,12 +59,15 @@ impl CostModel {
             spread: var.sqrt() / mean,
             spp,
             jobs_measured: times.len() as u32,
+            time_scale: 1.0,
         }
     }
 
     /// Mean time of a job of `pixels` pixels.
     pub fn mean_job_time(&self, pixels: usize) -> Duration {
-        Duration::from_secs_f64(pixels as f64 * f64::from(self.spp) / self.samples_per_second)
+        Duration::from_secs_f64(
+            pixels as f64 * f64::from(self.spp) / self.samples_per_second * self.time_scale,
+        )
     }
 
     /// One job's time: the mean scaled by `1 + spread·z`, z standard normal.
@@ -83,7 +90,7 @@ mod tests {
     use rand::SeedableRng;
 
     fn model(spread: f64) -> CostModel {
-        CostModel { samples_per_second: 1e6, spread, spp: 4, jobs_measured: 10 }
+        CostModel { samples_per_second: 1e6, spread, spp: 4, jobs_measured: 10, time_scale: 1.0 }
     }
 
     #[test]
@@ -91,6 +98,12 @@ mod tests {
         assert_eq!(model(0.0).mean_job_time(4800), Duration::from_secs_f64(4800.0 * 4.0 / 1e6));
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         assert_eq!(model(0.0).job_time(4800, &mut rng), model(0.0).mean_job_time(4800));
+    }
+
+    #[test]
+    fn the_time_scale_multiplies_every_time() {
+        let slow = CostModel { time_scale: 20.0, ..model(0.0) };
+        assert_eq!(slow.mean_job_time(100), model(0.0).mean_job_time(100).mul_f64(20.0));
     }
 
     #[test]

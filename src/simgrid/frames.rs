@@ -155,7 +155,7 @@ mod tests {
     use crate::render::testscenes;
 
     fn model() -> CostModel {
-        CostModel { samples_per_second: 1e6, spread: 0.0, spp: 1, jobs_measured: 2 }
+        CostModel { samples_per_second: 1e6, spread: 0.0, spp: 1, jobs_measured: 2, time_scale: 1.0 }
     }
 
     #[test]
