@@ -39,6 +39,10 @@ pub struct Args {
     /// Jobs each worker holds (k).
     #[arg(long, default_value_t = crate::worker::DEFAULT_PIPELINE)]
     pub pipeline: u32,
+    /// The master's fixed frame rate: the curve's frame i is the one due i/FPS seconds
+    /// after start (default: the newest frame a job named).
+    #[arg(long)]
+    pub fps: Option<f32>,
 }
 
 /// Runs `gridlight simgrid` until Ctrl-C or a fatal error.
@@ -55,6 +59,7 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
         first: args.first,
         count,
         pipeline: args.pipeline.max(1),
+        frame_rate: args.fps.filter(|f| *f > 0.0),
         cache_dir: cache_dir.clone(),
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()

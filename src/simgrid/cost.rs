@@ -5,7 +5,8 @@
 //! on one thread and records samples per second per job; a simulated worker then takes
 //! `pixels · spp / throughput` per job, scaled by a normal factor of the measured relative
 //! spread (clamped so that no job is free). The measurement runs on whatever else this
-//! machine is doing, so its spread includes that noise.
+//! machine is doing: the median and the median absolute deviation keep a few jobs that
+//! another process delayed from making every modelled core slow and erratic.
 
 use std::time::{Duration, Instant};
 
@@ -50,13 +51,13 @@ impl CostModel {
             let secs = started.elapsed().as_secs_f64().max(1e-9);
             rates.push((pixels.len() as u64 * u64::from(spp)) as f64 / secs);
         }
-        // Time per sample is what adds up over a job: average it, not the rates.
+        // Time per sample; robust centre and spread (MAD × 1.4826 estimates a normal σ).
         let times: Vec<f64> = rates.iter().map(|r| 1.0 / r).collect();
-        let mean = times.iter().sum::<f64>() / times.len() as f64;
-        let var = times.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / times.len() as f64;
+        let median = median(&times);
+        let deviations: Vec<f64> = times.iter().map(|t| (t - median).abs()).collect();
         Self {
-            samples_per_second: 1.0 / mean,
-            spread: var.sqrt() / mean,
+            samples_per_second: 1.0 / median,
+            spread: 1.4826 * crate::simgrid::cost::median(&deviations) / median,
             spp,
             jobs_measured: times.len() as u32,
             time_scale: 1.0,
@@ -74,6 +75,17 @@ impl CostModel {
     pub fn job_time(&self, pixels: usize, rng: &mut impl Rng) -> Duration {
         let factor = (1.0 + self.spread * standard_normal(rng)).max(MIN_FACTOR);
         self.mean_job_time(pixels).mul_f64(factor)
+    }
+}
+
+/// Median of a non-empty slice (0 when empty).
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => v[n / 2],
+        n => (v[n / 2 - 1] + v[n / 2]) / 2.0,
     }
 }
 

@@ -3,7 +3,8 @@
 //! every one of them what it pays for a real worker.
 //!
 //! Worker `g` of the grid (numbered across all its processes) takes jobs while
-//! `g < R_i`, `i` being the newest frame this process was given a job of; otherwise it is
+//! `g < R_i`, `i` being the newest frame this process was given a job of (or, at a fixed
+//! frame rate, the frame due at this time since the process started); otherwise it is
 //! paused (`Paused { Withdrawn }` on the wire), as a desk whose owner came back: the jobs
 //! it held are lost, never recomputed.
 
@@ -38,6 +39,9 @@ pub struct ProcessOptions {
     pub count: u32,
     /// Jobs each worker holds (k).
     pub pipeline: u32,
+    /// With a fixed frame rate, frame `i` is the one due `i / fps` seconds after start;
+    /// `None`: the newest frame a job named.
+    pub frame_rate: Option<f32>,
     /// The (empty) asset cache the sessions open; simulated workers load no assets.
     pub cache_dir: PathBuf,
 }
@@ -70,7 +74,13 @@ pub async fn run_until(
             rx,
         ));
     }
-    let follow = tokio::spawn(follow_availability(opts.availability, grid, switches, cancel.clone()));
+    let follow = tokio::spawn(follow_availability(
+        opts.availability,
+        opts.frame_rate,
+        grid,
+        switches,
+        cancel.clone(),
+    ));
     let mut outcome = Ok(());
     while let Some(done) = tasks.join_next().await {
         let result = done.unwrap_or_else(|e| Err(WorkerError::Connection(format!("task: {e}"))));
@@ -97,14 +107,20 @@ fn wanted(g: u32, available: u32) -> Activity {
 /// Pauses and resumes workers as the newest frame moves along the curve.
 async fn follow_availability(
     availability: Availability,
+    frame_rate: Option<f32>,
     grid: Arc<SimGrid>,
     switches: Vec<(u32, watch::Sender<Activity>)>,
     cancel: CancellationToken,
 ) {
+    let started = tokio::time::Instant::now();
     let mut tick = tokio::time::interval(FOLLOW_INTERVAL);
     while !cancel.is_cancelled() {
         tick.tick().await;
-        let available = availability.at(grid.newest_frame());
+        let frame = match frame_rate {
+            Some(fps) => (started.elapsed().as_secs_f64() * f64::from(fps)) as u64,
+            None => grid.newest_frame(),
+        };
+        let available = availability.at(frame);
         for (g, tx) in &switches {
             let want = wanted(*g, available);
             tx.send_if_modified(|now| {

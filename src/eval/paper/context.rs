@@ -27,6 +27,13 @@ pub const PAPER_HEIGHT: u32 = 480;
 /// 640·480·4·6.66 / 96 ≈ 85 000. A lower bound (frames were not all complete).
 pub const PAPER_CORE_SAMPLES_PER_SECOND: f64 = 640.0 * 480.0 * 4.0 * 6.66 / 96.0;
 
+/// Sets per frame on the simulated grids: four times the master's default, so that jobs
+/// per frame exceed the workers of most grids here (the paper's rule) while the master's
+/// per-job cost stays within two shared cores (a 640×480 job is 1200 pixels, about 56 ms
+/// on the paper's cores; 1024 sets made the master and the simulated grid's processes the
+/// bottleneck at a few thousand jobs per second).
+pub const GRID_SETS: u32 = 256;
+
 /// Figure 3's parameters.
 #[derive(Clone, Debug, Serialize)]
 pub struct Fig3 {
@@ -88,7 +95,11 @@ pub struct Options {
     /// Size of the cached (and reconstructed) frames; jobs are timed as 640×480 ones.
     pub width: u32,
     pub height: u32,
+    /// Sets per frame of the offline figures (3 and 9): the master's default.
     pub sets: u32,
+    /// Sets per frame of the sessions on simulated grids: the paper's rule is that jobs
+    /// per frame must be much greater than the number of workers (up to 256 here).
+    pub grid_sets: u32,
     /// Frames cached per static view (sample seeds differ per frame).
     pub cached_frames: u32,
     pub fig3: Fig3,
@@ -109,9 +120,10 @@ impl Options {
                 width: 160,
                 height: 120,
                 sets: 64,
+                grid_sets: GRID_SETS,
                 cached_frames: 8,
                 fig3: Fig3 { losses: vec![0.25, 0.5, 0.75] },
-                fig5: Fig5 { workers: 32, fps: 2.5, curve: Curve::Sine, period: 20, path },
+                fig5: Fig5 { workers: 32, fps: 4.0, curve: Curve::Sine, period: 20, path },
                 table1: Table1 {
                     scenes: vec!["cornell-box".into()],
                     workers: vec![32, 96],
@@ -126,7 +138,7 @@ impl Options {
                     gold_frames: 8,
                 },
                 fig9: Fig9 { frames: 8, loss: 0.5 },
-                fig10: Fig10 { workers: vec![1, 8, 32, 128, 256], seconds: 3.0 },
+                fig10: Fig10 { workers: vec![8, 32, 128, 256], seconds: 3.0 },
             }
         } else {
             Self {
@@ -134,6 +146,7 @@ impl Options {
                 width: 320,
                 height: 240,
                 sets: 64,
+                grid_sets: GRID_SETS,
                 cached_frames: 32,
                 fig3: Fig3 { losses: vec![0.25, 0.5, 0.75] },
                 fig5: Fig5 { workers: 96, fps: 6.66, curve: Curve::Sine, period: 100, path },
@@ -173,7 +186,9 @@ pub struct Context {
     /// Frame caches live here while the run lasts.
     pub work: WorkDir,
     pub timing: Option<Timing>,
-    prepared: HashMap<String, Arc<Prepared>>,
+    pub prepared: HashMap<String, Arc<Prepared>>,
+    /// Each scene's cost on this machine, measured once per run.
+    costs: HashMap<String, crate::simgrid::CostModel>,
     pub fig3: Fig3,
     pub fig5: Fig5,
     pub table1: Table1,
@@ -208,6 +223,7 @@ impl Context {
             work: WorkDir::create()?,
             timing: None,
             prepared: HashMap::new(),
+            costs: HashMap::new(),
         })
     }
 
@@ -266,19 +282,24 @@ impl Context {
             (Cores::Paper, None) if reference => paper_timing(),
             (Cores::Paper, None) => self.timing()?,
         };
-        self.step(format!("rendering the frame cache of {key}"));
+        self.step(format!("measuring {name} and rendering its frame cache"));
+        let cost = match self.costs.get(name) {
+            Some(c) => *c,
+            None => *self.costs.entry(name.to_string()).or_insert(Prepared::measure(&assets, &state)?),
+        };
         let path = if with_path { self.path()? } else { Vec::new() };
         let frames = if with_path { 1 } else { self.opts.cached_frames };
         let prepared = Arc::new(Prepared::new(
             &key,
             assets,
             state,
-            self.opts.sets,
+            self.opts.grid_sets,
             frames,
             &path,
             1,
             self.work.path(),
             timing,
+            cost,
         )?);
         if reference && self.timing.is_none() {
             self.timing = Some(Timing {
@@ -290,11 +311,27 @@ impl Context {
         Ok(Some(prepared))
     }
 
-    /// The recorded camera path of Figure 5.
+    /// The recorded camera path of Figure 5, at most one edit per frame of its fixed
+    /// rate ([`thin`]).
     pub fn path(&self) -> anyhow::Result<Vec<(Duration, Edit)>> {
-        Ok(gridlight_actors::script::load(&self.fig5.path)
-            .with_context(|| format!("loading the camera path {}", self.fig5.path.display()))?)
+        let path = gridlight_actors::script::load(&self.fig5.path)
+            .with_context(|| format!("loading the camera path {}", self.fig5.path.display()))?;
+        Ok(thin(path, Duration::from_secs_f64(1.0 / f64::from(self.fig5.fps.max(0.01)))))
     }
+}
+
+/// Keeps the last edit of each `period` of `path` (a window applies input once per shown
+/// frame). Edits that set the camera absolutely lose nothing but intermediate poses.
+pub fn thin(path: Vec<(Duration, Edit)>, period: Duration) -> Vec<(Duration, Edit)> {
+    let slot = |at: &Duration| (at.as_secs_f64() / period.as_secs_f64().max(1e-9)) as u64;
+    let mut out: Vec<(Duration, Edit)> = Vec::new();
+    for (at, edit) in path {
+        match out.last_mut() {
+            Some(last) if slot(&last.0) == slot(&at) => *last = (at, edit),
+            _ => out.push((at, edit)),
+        }
+    }
+    out
 }
 
 /// A directory for frame caches, removed with everything in it when dropped.
@@ -343,5 +380,23 @@ pub fn scenes_dir() -> PathBuf {
         local
     } else {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gridlight_actors::edit::CameraEdit;
+
+    fn at(ms: u64) -> (Duration, Edit) {
+        (Duration::from_millis(ms), Edit::Camera(CameraEdit::default()))
+    }
+
+    #[test]
+    fn thinning_keeps_the_last_edit_of_each_frame() {
+        let path = vec![at(0), at(100), at(200), at(300), at(400), at(500), at(1300)];
+        let times: Vec<u64> =
+            thin(path, Duration::from_millis(400)).iter().map(|(t, _)| t.as_millis() as u64).collect();
+        assert_eq!(times, [300, 500, 1300]);
     }
 }

@@ -34,6 +34,8 @@ use crate::render::RenderScene;
 use crate::simgrid::{Availability, CostModel, FrameCache};
 use crate::view::View;
 
+/// Sets of the jobs timed to measure a scene's cost.
+const MEASURE_SETS: u32 = 64;
 /// Jobs timed to measure a scene's cost.
 const COST_JOBS: u32 = 24;
 /// Simulated workers per child process at most.
@@ -52,8 +54,20 @@ pub struct Prepared {
 }
 
 impl Prepared {
-    /// Measures `state`'s cost and caches `frames` frames of it and one (or
-    /// `path_frames`) of each state along `path`.
+    /// Measures `state`'s cost on this machine (one core, the master's default sets).
+    pub fn measure(assets: &Arc<Assets>, state: &SceneState) -> anyhow::Result<CostModel> {
+        // Timed on the master's default sets: jobs large enough to time one by one.
+        let table = SetTable::new(
+            state.resolution,
+            SetsConfig { sets: MEASURE_SETS, partition: Partition::QuasiRandom },
+        )
+        .context("pixel sets")?;
+        let scene = RenderScene::new(Arc::clone(assets), state).context("render scene")?;
+        Ok(CostModel::measure(&scene, &table, COST_JOBS))
+    }
+
+    /// Caches `frames` frames of `state` and `path_frames` of each state along `path`,
+    /// with `cost` (measured by [`Prepared::measure`]) timed as `timing` says.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         name: &str,
@@ -65,11 +79,8 @@ impl Prepared {
         path_frames: u32,
         dir: &Path,
         timing: Timing,
+        mut cost: CostModel,
     ) -> anyhow::Result<Self> {
-        let table = SetTable::new(state.resolution, SetsConfig { sets, partition: Partition::QuasiRandom })
-            .context("pixel sets")?;
-        let scene = RenderScene::new(Arc::clone(&assets), &state).context("render scene")?;
-        let mut cost = CostModel::measure(&scene, &table, COST_JOBS);
         cost.time_scale = timing.time_scale(state.resolution.pixels(), cost.samples_per_second);
         let (w, h) = (state.resolution.width, state.resolution.height);
         let mut cache = FrameCache::new(w, h, cost);
@@ -139,11 +150,15 @@ pub struct Session {
 #[derive(Clone, Debug, Serialize)]
 pub struct FrameRecord {
     pub frame: u64,
-    /// Seconds since measuring began.
+    /// Seconds since every worker of the grid had connected.
     pub t: f64,
+    /// Shown inside the measured interval (after the warm-up).
+    pub measured: bool,
     pub q: f64,
     pub workers: u64,
     pub paused_workers: u64,
+    /// The scene-state version the frame was rendered with.
+    pub version: u64,
     /// FLIP to the gold standard, when one was given.
     pub flip: Option<f64>,
 }
@@ -151,12 +166,17 @@ pub struct FrameRecord {
 /// What a session measured.
 #[derive(Clone, Debug, Serialize)]
 pub struct Outcome {
+    /// Frames of the measured interval.
     pub frames: Vec<FrameRecord>,
+    /// Every frame shown once the grid had connected, warm-up included.
+    pub all_frames: Vec<FrameRecord>,
     pub frames_per_second: f64,
     pub mean_q: f64,
     /// Results used in shown frames ÷ results judged (used, unused or late).
     pub useful_fraction: f64,
     pub results_used: u64,
+    /// Results that came back: used, accepted into frames not shown, or late.
+    pub results_returned: u64,
     pub dropped_late: u64,
     pub frames_skipped: u64,
     pub seconds: f64,
@@ -185,7 +205,7 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         ),
         None => None,
     };
-    let clock = Arc::new(Mutex::new(None::<Instant>));
+    let clock = Arc::new(Mutex::new(Clock::default()));
     let sink = RecordingSink {
         records: Arc::clone(&records),
         composer,
@@ -204,21 +224,23 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         }
         std::thread::sleep(Duration::from_millis(20));
     }
+    clock.lock().unwrap_or_else(|p| p.into_inner()).connected = Some(Instant::now());
     if !handle.wait_for_frames(handle.report().shown + 2, WARMUP_TIMEOUT) {
         bail!("no frames shown with {want} simulated workers");
     }
     let before = Sample::take(&handle);
-    *clock.lock().unwrap_or_else(|p| p.into_inner()) = Some(before.at);
+    clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = true;
     if !session.path.is_empty() {
         handle.play_script(session.path.clone());
     }
     std::thread::sleep(Duration::from_secs_f64(session.seconds));
     let after = Sample::take(&handle);
-    *clock.lock().unwrap_or_else(|p| p.into_inner()) = None;
+    clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = false;
     drop(_grid);
     handle.stop().context("stopping the master")?;
 
-    let frames: Vec<FrameRecord> = std::mem::take(&mut *records.lock().unwrap_or_else(|p| p.into_inner()));
+    let all_frames: Vec<FrameRecord> = std::mem::take(&mut *records.lock().unwrap_or_else(|p| p.into_inner()));
+    let frames: Vec<FrameRecord> = all_frames.iter().filter(|f| f.measured).cloned().collect();
     let seconds = after.at.duration_since(before.at).as_secs_f64();
     let (used, unused, late) =
         (after.used - before.used, after.unused - before.unused, after.late - before.late);
@@ -226,8 +248,10 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         frames_per_second: frames.len() as f64 / seconds,
         mean_q: mean(frames.iter().map(|f| f.q)),
         frames,
+        all_frames,
         useful_fraction: useful_fraction(used, used + unused, late).unwrap_or(0.0),
         results_used: used,
+        results_returned: used + unused + late,
         dropped_late: late,
         frames_skipped: after.skipped - before.skipped,
         seconds,
@@ -259,6 +283,10 @@ fn spawn_grid(exe: &Path, master: SocketAddr, prepared: &Prepared, session: &Ses
             .args(["--period", &session.availability.period.to_string()])
             .args(["--first", &first.to_string(), "--count", &count.to_string()])
             .args(["--pipeline", &session.pipeline.max(1).to_string()])
+            .args(match session.pacing {
+                Pacing::FixedFps(fps) => vec!["--fps".to_string(), fps.to_string()],
+                Pacing::Heuristic(_) => Vec::new(),
+            })
             .env("RUST_LOG", "error")
             .stdout(Stdio::null());
         children.spawn(cmd).context("starting a simulated-grid process")?;
@@ -280,7 +308,14 @@ struct RecordingSink {
     records: Arc<Mutex<Vec<FrameRecord>>>,
     composer: Option<Composer>,
     gold: Option<Arc<Vec<Vec3>>>,
-    clock: Arc<Mutex<Option<Instant>>>,
+    clock: Arc<Mutex<Clock>>,
+}
+
+/// When the grid had connected, and whether the measured interval runs.
+#[derive(Default)]
+struct Clock {
+    connected: Option<Instant>,
+    measuring: bool,
 }
 
 impl FrameSink for RecordingSink {
@@ -294,16 +329,20 @@ impl FrameSink for RecordingSink {
             }
             _ => None,
         };
-        let Some(start) = *self.clock.lock().unwrap_or_else(|p| p.into_inner()) else {
-            return Ok(());
+        let (connected, measured) = {
+            let clock = self.clock.lock().unwrap_or_else(|p| p.into_inner());
+            (clock.connected, clock.measuring)
         };
+        let Some(start) = connected else { return Ok(()) };
         let s = &frame.stats;
         self.records.lock().unwrap_or_else(|p| p.into_inner()).push(FrameRecord {
             frame: frame.frame,
             t: start.elapsed().as_secs_f64(),
+            measured,
             q: s.q,
             workers: s.workers,
             paused_workers: s.paused_workers,
+            version: frame.state.version,
             flip,
         });
         Ok(())

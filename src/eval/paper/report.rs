@@ -19,6 +19,9 @@ pub fn write(ctx: &Context, sections: &[Section]) -> anyhow::Result<()> {
         "options": ctx.opts,
         "timing": ctx.timing,
         "paper_core_samples_per_second": PAPER_CORE_SAMPLES_PER_SECOND,
+        "scenes": ctx.prepared.iter().map(|(k, p)| (k.clone(), json!({
+            "cost": p.cost, "job_ms": p.job_time().as_secs_f64() * 1e3, "sets": p.sets,
+        }))).collect::<serde_json::Map<_, _>>(),
         "sections": sections,
     });
     std::fs::write(out.join("results.json"), serde_json::to_string_pretty(&results)?)
@@ -50,12 +53,13 @@ pub fn markdown(ctx: &Context, sections: &[Section]) -> String {
          `pixels × spp ÷ throughput`, scaled by a normal factor of the measured spread.\n\
          - **The modelled cores** are the paper's: {:.0} samples per second each on the Cornell \
          box (640·480·4·6.66/96: Table 1's rate on 96 cores), other scenes in proportion to their \
-         cost measured here. Jobs are timed as the paper's 640×480 jobs ({} sets per frame) while \
-         their pixels come from the smaller cached frames. Figure 10 also uses this machine's \
+         cost measured here. Jobs are timed as the paper's 640×480 jobs ({} sets per frame, so \
+         that jobs per frame far exceed the workers, the paper's rule) while their pixels come \
+         from the smaller cached frames. Figure 10 also uses this machine's \
          own cores.\n\
          - **This machine**: 2 cores shared with other work; the master and all simulated \
          workers share them, so results at large grids include that contention.\n",
-        o.width, o.height, o.cached_frames, PAPER_CORE_SAMPLES_PER_SECOND, o.sets
+        o.width, o.height, o.cached_frames, PAPER_CORE_SAMPLES_PER_SECOND, o.grid_sets
     );
     if let Some(t) = ctx.timing {
         let _ = writeln!(
@@ -122,8 +126,12 @@ fn closing(sections: &[Section]) -> String {
             "fig5" => {
                 let _ = writeln!(
                     s,
-                    "- Figure 5: correlation of Q_t with R_i {} (mean Q_t {:.2}).",
+                    "- Figure 5: correlation of Q_t ({}-frame mean) with the resources {} over the \
+                     whole session, {} while still, {} while moving (mean Q_t {:.2}).",
+                    sec.data["smooth_frames"],
                     sec.data["correlation_q_r"].as_f64().map_or("undefined".into(), |v| format!("{v:.2}")),
+                    sec.data["correlation_still"].as_f64().map_or("undefined".into(), |v| format!("{v:.2}")),
+                    sec.data["correlation_moving"].as_f64().map_or("undefined".into(), |v| format!("{v:.2}")),
                     sec.data["mean_q"].as_f64().unwrap_or(0.0)
                 );
             }
