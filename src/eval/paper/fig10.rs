@@ -162,5 +162,6 @@ pub fn run(ctx: &mut Context, p: &Fig10) -> anyhow::Result<Section> {
             goal,
         )],
         data: json!({ "rows": rows, "goal_efficiency": GOAL_EFFICIENCY, "goal_workers": GOAL_WORKERS }),
+        seconds: 0.0,
     })
 }

@@ -167,6 +167,7 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
             "useful_fraction": out.useful_fraction, "frames": out.frames,
             "path_edits": path.len(), "seconds": seconds,
         }),
+        seconds: 0.0,
     })
 }
 

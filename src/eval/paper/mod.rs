@@ -60,6 +60,8 @@ pub struct Section {
     pub claims: Vec<Claim>,
     /// Every number behind the section.
     pub data: serde_json::Value,
+    /// Wall time the experiment took.
+    pub seconds: f64,
 }
 
 /// Every experiment, in the report's order.
@@ -78,7 +80,8 @@ pub fn run_all(ctx: &mut Context) -> anyhow::Result<Vec<Section>> {
 /// Runs one experiment by name.
 pub fn run_one(ctx: &mut Context, id: &str) -> anyhow::Result<Section> {
     ctx.progress.set_message(id.to_string());
-    let section = match id {
+    let started = std::time::Instant::now();
+    let mut section = match id {
         "fig3" => offline::fig3(ctx, &ctx.fig3.clone())?,
         "fig9" => offline::fig9(ctx, &ctx.fig9.clone())?,
         "fig5" => fig5::run(ctx, &ctx.fig5.clone())?,
@@ -87,6 +90,7 @@ pub fn run_one(ctx: &mut Context, id: &str) -> anyhow::Result<Section> {
         "fig10" => fig10::run(ctx, &ctx.fig10.clone())?,
         other => anyhow::bail!("no experiment `{other}` (known: {})", EXPERIMENTS.join(", ")),
     };
+    section.seconds = started.elapsed().as_secs_f64();
     ctx.progress.inc(1);
     Ok(section)
 }

@@ -97,6 +97,7 @@ pub fn fig3(ctx: &mut Context, p: &Fig3) -> anyhow::Result<Section> {
         images,
         claims: vec![Claim::new("tiles give a larger error than quasi-random sets at every loss level", wins == rows.len())],
         data: json!({ "width": w, "height": h, "sets": ctx.opts.sets, "rows": rows }),
+        seconds: 0.0,
     })
 }
 
@@ -175,5 +176,6 @@ pub fn fig9(ctx: &mut Context, p: &Fig9) -> anyhow::Result<Section> {
             gst <= gsp,
         )],
         data: json!({ "loss": p.loss, "points": points }),
+        seconds: 0.0,
     })
 }

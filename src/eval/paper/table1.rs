@@ -154,5 +154,6 @@ pub fn run(ctx: &mut Context, p: &Table1) -> anyhow::Result<Section> {
         images: Vec::new(),
         claims: vec![Claim::new("fixed-rate sessions hold the paper's rates within 15 %", fixed_ok)],
         data: json!({ "rows": rows, "skipped": skipped, "paper_rates": PAPER_RATES }),
+        seconds: 0.0,
     })
 }
