@@ -10,9 +10,9 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use gridlight::faults::curve::live_workers;
-use gridlight::faults::harness::{Fault, Harness, HarnessConfig};
-use gridlight::faults::proxy::Mode;
+use gridlight::tools::faults::curve::live_workers;
+use gridlight::tools::faults::harness::{Fault, Harness, HarnessConfig};
+use gridlight::tools::faults::proxy::Mode;
 use gridlight_actors::stats::Counters;
 
 const WORKERS: usize = 3;

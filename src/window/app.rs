@@ -302,7 +302,7 @@ impl App {
                     KeyCode::Digit5 => 4,
                     _ => 5,
                 };
-                self.settings.view = crate::view::View::ALL[i];
+                self.settings.view = crate::master::view::View::ALL[i];
             }
             KeyCode::ArrowLeft => self.nudge(Nudge::Left),
             KeyCode::ArrowRight => self.nudge(Nudge::Right),

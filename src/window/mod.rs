@@ -13,7 +13,7 @@
 //!
 //! # Files
 //! - [`app`]: the winit application (input, drawing).
-//! - [`gpu`], [`blit`]: the wgpu surface and the picture pass (`shaders/blit.wgsl`).
+//! - [`gpu`], [`blit`]: the wgpu surface and the picture pass (`blit.wgsl`).
 //! - [`camera`], [`manipulate`]: camera controllers and object moves (pure maths).
 //! - [`edits`]: scene edits, their coalescing and local application.
 //! - [`panel`], [`status`]: the egui side panel over plain data.
@@ -45,7 +45,7 @@ pub mod screenshot;
 pub mod session;
 pub mod status;
 
-use crate::view::View;
+use crate::master::view::View;
 use edits::SceneEdit;
 use latest::Latest;
 use panel::PacingChoice;

@@ -26,9 +26,9 @@ use super::panel::PacingChoice;
 use super::picture::Picture;
 use super::status::{StatusView, WorkerRow};
 use super::{Composed, Session, UserEvent};
-use crate::compose::{Composer, SharedScene};
+use crate::master::compose::{Composer, SharedScene};
+use crate::master::view::View;
 use crate::render;
-use crate::view::View;
 
 /// The view the window wants, shared with the sink (index into [`View::ALL`]).
 pub type SharedView = Arc<AtomicU8>;
