@@ -7,7 +7,7 @@ use gridlight_actors::master::ActorKind;
 use super::workers::signal;
 use super::{Harness, HarnessError};
 use crate::tools::faults::invariants::lock;
-use crate::tools::faults::proxy::Mode;
+use crate::tools::faults::proxy::LinkMode;
 
 /// One fault of issue 6's list, as the soak and the tests inject it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,7 +25,7 @@ pub enum Fault {
     /// A panic inside the `i`-th connection actor.
     PanicConnection(usize),
     /// Set the proxy's mode for the proxied workers (undone by [`Harness::undo`]).
-    Link(Mode),
+    Link(LinkMode),
     /// Stop the master and start a new one on the same address.
     RestartMaster,
 }
@@ -46,12 +46,12 @@ impl Fault {
         all.extend([Fault::KillConnection(0), Fault::PanicConnection(1)]);
         all.extend(
             [
-                Mode::Delay(Duration::from_millis(100)),
-                Mode::Drop,
-                Mode::Truncate,
-                Mode::Corrupt,
-                Mode::Stall,
-                Mode::Cut,
+                LinkMode::Delay(Duration::from_millis(100)),
+                LinkMode::Drop,
+                LinkMode::Truncate,
+                LinkMode::Corrupt,
+                LinkMode::Stall,
+                LinkMode::Cut,
             ]
             .map(Fault::Link),
         );
@@ -139,14 +139,14 @@ impl Harness {
     }
 
     /// Sets the proxy's mode (link faults for the proxied workers).
-    pub fn link_fault(&mut self, mode: Mode) {
+    pub fn link_fault(&mut self, mode: LinkMode) {
         let Some(p) = &self.proxy else { return };
-        if mode == Mode::Cut {
+        if mode == LinkMode::Cut {
             p.cut_all();
         } else {
             p.set_mode(mode);
         }
-        if mode != Mode::Pass {
+        if mode != LinkMode::Pass {
             self.fault(&format!("link_{}", mode.name()));
         }
         self.note_live();
@@ -197,7 +197,7 @@ impl Harness {
             }
             Fault::Link(mode) => {
                 self.link_fault(mode);
-                mode != Mode::Pass
+                mode != LinkMode::Pass
             }
             Fault::RestartMaster => {
                 self.restart_master()?;
@@ -208,7 +208,7 @@ impl Harness {
 
     /// Ends lasting faults: the link passes again and frozen workers are thawed.
     pub fn undo(&mut self) {
-        self.link_fault(Mode::Pass);
+        self.link_fault(LinkMode::Pass);
         self.thaw_all();
     }
 

@@ -27,7 +27,7 @@ use gridlight_actors::stats::Counters;
 use thiserror::Error;
 
 use super::invariants::{lock, Checker, CheckingSink, Limits, QSummary, SharedChecker};
-use super::proxy::{Mode, Proxy};
+use super::proxy::{LinkMode, Proxy};
 use crate::worker::render::null_radiance;
 
 mod fault;
@@ -286,8 +286,10 @@ impl Harness {
     /// Tells the checker how many workers can deliver: running, and not behind a
     /// faulty link.
     fn note_live(&mut self) {
-        let healthy_link =
-            self.proxy.as_ref().is_none_or(|p| matches!(p.mode(), Mode::Pass | Mode::Delay(_)));
+        let healthy_link = self
+            .proxy
+            .as_ref()
+            .is_none_or(|p| matches!(p.mode(), LinkMode::Pass | LinkMode::Delay(_)));
         let live =
             self.workers.iter().filter(|w| !w.frozen && (healthy_link || !w.proxied)).count();
         let live = if self.master.is_some() { live } else { 0 };
