@@ -112,14 +112,13 @@ impl Prepared {
 pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     let search = opts.scene.search_path(&opts.asset_dirs);
     let loaded = crate::scene::load_source(&opts.scene, &search)?;
-    let manifest = crate::scene::manifest(&loaded.state, &search)
-        .with_context(|| format!("hashing the assets of {}", opts.scene))?;
+    // The store hashes each file as it adds it: the only hashing at start.
+    let paths = crate::scene::asset_paths(&loaded.state, &loaded.assets)
+        .with_context(|| format!("listing the assets of {}", opts.scene))?;
     let mut store = AssetStore::new();
-    for entry in &manifest {
-        let file = search.resolve(&entry.path)?;
-        store
-            .add_file(&entry.path, &file)
-            .with_context(|| format!("serving asset `{}`", entry.path))?;
+    for path in &paths {
+        let file = search.resolve(path)?;
+        store.add_file(path, &file).with_context(|| format!("serving asset `{path}`"))?;
     }
     let params = opts.display.params(loaded.reconstruction);
     params.validate().context("reconstruction parameters")?;

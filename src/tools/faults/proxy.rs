@@ -1,7 +1,7 @@
 //! A fault-injecting TCP proxy (tokio) to put between workers and the master.
 //!
 //! Every accepted connection is piped to the upstream address in both directions;
-//! each chunk read is passed through the proxy's current [`Mode`], which the test or
+//! each chunk read is passed through the proxy's current [`LinkMode`], which the test or
 //! the soak changes at any time: delay, drop, truncate, corrupt, stall (the peer sees
 //! an open but silent socket) or cut. It can also capture every byte it forwards, so a
 //! test can prove what never crosses the wire (the shared secret). The proxy runs on
@@ -26,7 +26,7 @@ const STALL_POLL: Duration = Duration::from_millis(20);
 
 /// What the proxy does to the bytes it forwards.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Mode {
+pub enum LinkMode {
     /// Forward unchanged.
     Pass,
     /// Hold each chunk this long before forwarding it.
@@ -43,17 +43,17 @@ pub enum Mode {
     Cut,
 }
 
-impl Mode {
+impl LinkMode {
     /// A short name for reports (`faults` by kind).
     pub fn name(&self) -> &'static str {
         match self {
-            Mode::Pass => "pass",
-            Mode::Delay(_) => "delay",
-            Mode::Drop => "drop",
-            Mode::Truncate => "truncate",
-            Mode::Corrupt => "corrupt",
-            Mode::Stall => "stall",
-            Mode::Cut => "cut",
+            LinkMode::Pass => "pass",
+            LinkMode::Delay(_) => "delay",
+            LinkMode::Drop => "drop",
+            LinkMode::Truncate => "truncate",
+            LinkMode::Corrupt => "corrupt",
+            LinkMode::Stall => "stall",
+            LinkMode::Cut => "cut",
         }
     }
 }
@@ -79,7 +79,7 @@ pub struct ProxyStats {
 }
 
 struct Shared {
-    mode: Mutex<Mode>,
+    mode: Mutex<LinkMode>,
     upstream: Mutex<SocketAddr>,
     /// Cancelled by [`Proxy::cut_all`]; replaced by a fresh one for later connections.
     generation: Mutex<CancellationToken>,
@@ -102,7 +102,7 @@ impl Proxy {
         socket.set_nonblocking(true)?;
         let local_addr = socket.local_addr()?;
         let shared = Arc::new(Shared {
-            mode: Mutex::new(Mode::Pass),
+            mode: Mutex::new(LinkMode::Pass),
             upstream: Mutex::new(upstream),
             generation: Mutex::new(CancellationToken::new()),
             capture: Mutex::new(None),
@@ -129,11 +129,11 @@ impl Proxy {
     }
 
     /// Changes what happens to every byte from now on, on every connection.
-    pub fn set_mode(&self, mode: Mode) {
+    pub fn set_mode(&self, mode: LinkMode) {
         *lock(&self.shared.mode) = mode;
     }
 
-    pub fn mode(&self) -> Mode {
+    pub fn mode(&self) -> LinkMode {
         *lock(&self.shared.mode)
     }
 
@@ -223,7 +223,7 @@ async fn pipe(
     let mut rng = rand::rngs::StdRng::from_entropy();
     let mut buf = vec![0u8; 64 * 1024];
     loop {
-        if *lock(&shared.mode) == Mode::Stall {
+        if *lock(&shared.mode) == LinkMode::Stall {
             tokio::select! {
                 _ = conn.cancelled() => break,
                 _ = tokio::time::sleep(STALL_POLL) => continue,
@@ -237,28 +237,28 @@ async fn pipe(
         let chunk = &mut buf[..n];
         let faulted = &shared.stats.chunks_faulted;
         match mode {
-            Mode::Pass | Mode::Stall => {}
-            Mode::Delay(d) => {
+            LinkMode::Pass | LinkMode::Stall => {}
+            LinkMode::Delay(d) => {
                 faulted.fetch_add(1, Ordering::Relaxed);
                 tokio::time::sleep(d).await;
             }
-            Mode::Drop => {
+            LinkMode::Drop => {
                 faulted.fetch_add(1, Ordering::Relaxed);
                 continue;
             }
-            Mode::Corrupt => {
+            LinkMode::Corrupt => {
                 faulted.fetch_add(1, Ordering::Relaxed);
                 let i = rng.gen_range(0..n);
                 chunk[i] ^= rng.gen_range(1..=255u8);
             }
-            Mode::Truncate => {
+            LinkMode::Truncate => {
                 faulted.fetch_add(1, Ordering::Relaxed);
                 let half = n / 2;
                 record(&shared, dir, &chunk[..half]);
                 let _ = to.write_all(&chunk[..half]).await;
                 break;
             }
-            Mode::Cut => {
+            LinkMode::Cut => {
                 shared.stats.connections_cut.fetch_add(1, Ordering::Relaxed);
                 break;
             }
@@ -344,14 +344,14 @@ mod tests {
     #[test]
     fn corrupt_changes_bytes_and_truncate_closes() {
         let p = Proxy::start(echo_server()).expect("proxy");
-        p.set_mode(Mode::Corrupt);
+        p.set_mode(LinkMode::Corrupt);
         let mut s = client(&p);
         s.write_all(&[0u8; 8]).expect("write");
         let mut got = [0u8; 8];
         s.read_exact(&mut got).expect("echo");
         assert_ne!(got, [0u8; 8], "corrupt mode forwarded the bytes unchanged");
 
-        p.set_mode(Mode::Truncate);
+        p.set_mode(LinkMode::Truncate);
         let mut s = client(&p);
         s.write_all(b"0123456789").expect("write");
         let got = read_all(&mut s);
@@ -368,7 +368,7 @@ mod tests {
         p.cut_all();
         assert!(read_all(&mut s).is_empty(), "bytes after the cut");
 
-        p.set_mode(Mode::Stall);
+        p.set_mode(LinkMode::Stall);
         let mut s = client(&p);
         s.set_read_timeout(Some(Duration::from_millis(200))).expect("timeout");
         s.write_all(b"y").expect("write");
@@ -377,7 +377,7 @@ mod tests {
             err.kind(),
             std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
         ));
-        p.set_mode(Mode::Pass);
+        p.set_mode(LinkMode::Pass);
         s.set_read_timeout(Some(Duration::from_secs(5))).expect("timeout");
         s.read_exact(&mut b).expect("the stall ended");
         assert_eq!(&b, b"y");

@@ -25,7 +25,7 @@ use rand::{Rng, SeedableRng};
 use super::curve::live_workers;
 use super::harness::{Fault, Harness, HarnessConfig, HarnessError, HarnessReport};
 use super::invariants::lock;
-use super::proxy::Mode;
+use super::proxy::LinkMode;
 use super::rss::rss_kb;
 
 /// Time between two fault decisions.
@@ -136,9 +136,9 @@ fn random_fault(rng: &mut StdRng, n: usize) -> Option<Fault> {
         7 => Fault::PanicActor(ActorKind::SceneHolder),
         8 => Fault::KillConnection(rng.gen_range(0..64)),
         9 => Fault::PanicConnection(rng.gen_range(0..64)),
-        10 => Fault::Link(Mode::Delay(Duration::from_millis(rng.gen_range(10..300)))),
+        10 => Fault::Link(LinkMode::Delay(Duration::from_millis(rng.gen_range(10..300)))),
         11..=15 => Fault::Link(
-            [Mode::Drop, Mode::Truncate, Mode::Corrupt, Mode::Stall, Mode::Cut]
+            [LinkMode::Drop, LinkMode::Truncate, LinkMode::Corrupt, LinkMode::Stall, LinkMode::Cut]
                 [rng.gen_range(0..5)],
         ),
         16 => Fault::RestartMaster,

@@ -5,17 +5,19 @@
 //! once a pixel that came from the wrong frame. Every other worker connects through a
 //! [`Proxy`], so link faults hit some workers while the others keep the grid alive; the
 //! checker's gap clock only counts while a worker with a healthy link is alive.
+//!
+//! Files: this one (the harness's life: start, tick, report), `workers.rs` (the worker
+//! processes), `fault.rs` (the faults and how each is injected).
 
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use glam::{Quat, Vec3};
 use gridlight_actors::asset_store::AssetStore;
-use gridlight_actors::master::{start, ActorKind, MasterConfig, MasterHandle};
+use gridlight_actors::master::{start, MasterConfig, MasterHandle};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::state::{
     Camera, Geometry, Material, MaterialKind, Object, RenderSettings, Resolution, SceneState,
@@ -25,8 +27,14 @@ use gridlight_actors::stats::Counters;
 use thiserror::Error;
 
 use super::invariants::{lock, Checker, CheckingSink, Limits, QSummary, SharedChecker};
-use super::proxy::{Mode, Proxy};
+use super::proxy::{LinkMode, Proxy};
 use crate::worker::render::null_radiance;
+
+mod fault;
+mod workers;
+
+pub use fault::Fault;
+use workers::{signal, ScratchDir, WorkerProc};
 
 /// Errors setting up or driving the harness.
 #[derive(Debug, Error)]
@@ -79,64 +87,6 @@ impl HarnessConfig {
             proxy: true,
         }
     }
-}
-
-/// One fault of issue 6's list, as the soak and the tests inject it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Fault {
-    /// SIGKILL the `i`-th worker process (modulo the count).
-    KillWorker(usize),
-    /// SIGSTOP the `i`-th running worker (thawed by [`Harness::undo`]).
-    FreezeWorker(usize),
-    /// Start one more worker process.
-    SpawnWorker,
-    /// A panic inside a core actor of the master; its supervisor restarts it.
-    PanicActor(ActorKind),
-    /// End the `i`-th connection actor abruptly.
-    KillConnection(usize),
-    /// A panic inside the `i`-th connection actor.
-    PanicConnection(usize),
-    /// Set the proxy's mode for the proxied workers (undone by [`Harness::undo`]).
-    Link(Mode),
-    /// Stop the master and start a new one on the same address.
-    RestartMaster,
-}
-
-impl Fault {
-    /// One fault of every kind, in an order that keeps the grid alive between them.
-    pub fn every_kind() -> Vec<Fault> {
-        let mut all = vec![Fault::SpawnWorker, Fault::KillWorker(0), Fault::FreezeWorker(0)];
-        all.extend(
-            [
-                ActorKind::Scheduler,
-                ActorKind::Assembler,
-                ActorKind::Display,
-                ActorKind::SceneHolder,
-            ]
-            .map(Fault::PanicActor),
-        );
-        all.extend([Fault::KillConnection(0), Fault::PanicConnection(1)]);
-        all.extend(
-            [
-                Mode::Delay(Duration::from_millis(100)),
-                Mode::Drop,
-                Mode::Truncate,
-                Mode::Corrupt,
-                Mode::Stall,
-                Mode::Cut,
-            ]
-            .map(Fault::Link),
-        );
-        all.push(Fault::RestartMaster);
-        all
-    }
-}
-
-/// One worker process.
-struct WorkerProc {
-    child: Child,
-    frozen: bool,
-    proxied: bool,
 }
 
 /// What a run did and saw (the soak's JSON).
@@ -252,203 +202,6 @@ impl Harness {
         &self.checker
     }
 
-    /// Starts one more worker process; every other one goes through the proxy.
-    pub fn spawn_worker(&mut self) -> Result<u32, HarnessError> {
-        let proxied = self.proxy.is_some() && self.spawned % 2 == 1;
-        let addr = match (&self.proxy, proxied) {
-            (Some(p), true) => p.local_addr(),
-            _ => self.listen,
-        };
-        let mut cmd = Command::new(&self.config.binary);
-        cmd.arg("worker")
-            .arg("--master")
-            .arg(addr.to_string())
-            .args(["--threads", "1", "--null-render", "--null-render-delay-ms"])
-            .arg(self.config.render_delay_ms.to_string())
-            // These workers stand for other machines: at the default idle priority their
-            // simulated renders would wait behind every process of this (loaded) host.
-            .args(["--priority", "normal"])
-            .arg("--name")
-            .arg(format!("fault-{}", self.spawned))
-            .arg("--cache-dir")
-            .arg(self.dir.path().join("cache"))
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null());
-        if self.config.secret.is_some() {
-            cmd.arg("--secret-file").arg(self.dir.path().join("secret"));
-        }
-        crate::children::die_with_parent(&mut cmd);
-        let binary = self.config.binary.clone();
-        let child = cmd.spawn().map_err(|source| HarnessError::Spawn { binary, source })?;
-        let pid = child.id();
-        self.spawned += 1;
-        self.workers.push(WorkerProc { child, frozen: false, proxied });
-        self.note_live();
-        Ok(pid)
-    }
-
-    /// Worker processes alive and not frozen.
-    pub fn live_workers(&self) -> usize {
-        self.workers.iter().filter(|w| !w.frozen).count()
-    }
-
-    /// Worker processes held (frozen ones included).
-    pub fn workers(&self) -> usize {
-        self.workers.len()
-    }
-
-    /// SIGKILLs worker `i` (modulo the count); false when there is none.
-    pub fn kill_worker(&mut self, i: usize) -> bool {
-        if self.workers.is_empty() {
-            return false;
-        }
-        let mut w = self.workers.remove(i % self.workers.len());
-        let _ = w.child.kill();
-        let _ = w.child.wait();
-        self.fault("kill_worker");
-        self.note_live();
-        true
-    }
-
-    /// SIGSTOPs the `i`-th running worker; false when none runs.
-    pub fn freeze_worker(&mut self, i: usize) -> bool {
-        let running: Vec<usize> =
-            (0..self.workers.len()).filter(|&j| !self.workers[j].frozen).collect();
-        if running.is_empty() {
-            return false;
-        }
-        let w = &mut self.workers[running[i % running.len()]];
-        signal(&w.child, libc::SIGSTOP);
-        w.frozen = true;
-        self.fault("freeze_worker");
-        self.note_live();
-        true
-    }
-
-    /// SIGCONTs every frozen worker.
-    pub fn thaw_all(&mut self) {
-        for w in self.workers.iter_mut().filter(|w| w.frozen) {
-            signal(&w.child, libc::SIGCONT);
-            w.frozen = false;
-        }
-        self.note_live();
-    }
-
-    /// Starts or kills workers until `n` are live (the resource curve).
-    pub fn set_live(&mut self, n: usize) -> Result<(), HarnessError> {
-        self.thaw_all();
-        while self.workers.len() > n {
-            self.kill_worker(self.workers.len() - 1);
-        }
-        while self.workers.len() < n {
-            self.spawn_worker()?;
-        }
-        Ok(())
-    }
-
-    /// Makes a core actor of the master panic (its supervisor restarts it).
-    pub fn panic_actor(&mut self, kind: ActorKind) {
-        if let Some(m) = &self.master {
-            m.inject_panic(kind);
-            self.fault(match kind {
-                ActorKind::Scheduler => "panic_scheduler",
-                ActorKind::Assembler => "panic_assembler",
-                ActorKind::Display => "panic_display",
-                ActorKind::SceneHolder => "panic_scene_holder",
-            });
-        }
-    }
-
-    /// Kills (or makes panic) the `i`-th live connection actor; false when none.
-    pub fn fault_connection(&mut self, i: usize, panic: bool) -> bool {
-        let Some(m) = &self.master else { return false };
-        let Ok(ids) = m.connections() else { return false };
-        if ids.is_empty() {
-            return false;
-        }
-        let id = ids[i % ids.len()];
-        let done = if panic { m.panic_connection(id) } else { m.kill_connection(id) };
-        if matches!(done, Ok(true)) {
-            self.fault(if panic { "panic_connection" } else { "kill_connection" });
-        }
-        matches!(done, Ok(true))
-    }
-
-    /// Sets the proxy's mode (link faults for the proxied workers).
-    pub fn link_fault(&mut self, mode: Mode) {
-        let Some(p) = &self.proxy else { return };
-        if mode == Mode::Cut {
-            p.cut_all();
-        } else {
-            p.set_mode(mode);
-        }
-        if mode != Mode::Pass {
-            self.fault(&format!("link_{}", mode.name()));
-        }
-        self.note_live();
-    }
-
-    /// Stops the master and starts a new one on the same address; workers must come
-    /// back by themselves.
-    pub fn restart_master(&mut self) -> Result<(), HarnessError> {
-        lock(&self.checker).note_live(0, Instant::now());
-        if let Some(m) = self.master.take() {
-            self.add_up(m.counters());
-            if let Err(e) = m.stop() {
-                lock(&self.checker).violate(format!("the master failed to stop: {e}"));
-            }
-        }
-        self.fault("restart_master");
-        self.report.master_restarts += 1;
-        self.start_master()?;
-        self.note_live();
-        Ok(())
-    }
-
-    /// Injects one fault; true when it lasts until [`Harness::undo`] (a link fault, a
-    /// freeze). A fault with nothing to act on (no worker, no connection) is not counted.
-    pub fn inject(&mut self, fault: Fault) -> Result<bool, HarnessError> {
-        Ok(match fault {
-            Fault::KillWorker(i) => {
-                self.kill_worker(i);
-                false
-            }
-            Fault::FreezeWorker(i) => self.freeze_worker(i),
-            Fault::SpawnWorker => {
-                self.spawn_worker()?;
-                self.fault("spawn_worker");
-                false
-            }
-            Fault::PanicActor(kind) => {
-                self.panic_actor(kind);
-                false
-            }
-            Fault::KillConnection(i) => {
-                self.fault_connection(i, false);
-                false
-            }
-            Fault::PanicConnection(i) => {
-                self.fault_connection(i, true);
-                false
-            }
-            Fault::Link(mode) => {
-                self.link_fault(mode);
-                mode != Mode::Pass
-            }
-            Fault::RestartMaster => {
-                self.restart_master()?;
-                false
-            }
-        })
-    }
-
-    /// Ends lasting faults: the link passes again and frozen workers are thawed.
-    pub fn undo(&mut self) {
-        self.link_fault(Mode::Pass);
-        self.thaw_all();
-    }
-
     /// Periodic checks: the master still runs, workers that exited, the gap clock.
     pub fn tick(&mut self) {
         let now = Instant::now();
@@ -526,10 +279,6 @@ impl Harness {
         report
     }
 
-    fn fault(&mut self, kind: &str) {
-        *self.report.faults.entry(kind.to_owned()).or_default() += 1;
-    }
-
     fn add_up(&mut self, c: &Counters) {
         add_counters(&mut self.past, c);
     }
@@ -537,8 +286,10 @@ impl Harness {
     /// Tells the checker how many workers can deliver: running, and not behind a
     /// faulty link.
     fn note_live(&mut self) {
-        let healthy_link =
-            self.proxy.as_ref().is_none_or(|p| matches!(p.mode(), Mode::Pass | Mode::Delay(_)));
+        let healthy_link = self
+            .proxy
+            .as_ref()
+            .is_none_or(|p| matches!(p.mode(), LinkMode::Pass | LinkMode::Delay(_)));
         let live =
             self.workers.iter().filter(|w| !w.frozen && (healthy_link || !w.proxied)).count();
         let live = if self.master.is_some() { live } else { 0 };
@@ -556,29 +307,6 @@ impl Drop for Harness {
     }
 }
 
-/// A fresh directory under the system's temp dir, removed on drop.
-struct ScratchDir(PathBuf);
-
-impl ScratchDir {
-    fn new() -> std::io::Result<Self> {
-        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("gridlight-faults-{}-{n}", std::process::id()));
-        std::fs::create_dir_all(&dir)?;
-        Ok(Self(dir))
-    }
-
-    fn path(&self) -> &std::path::Path {
-        &self.0
-    }
-}
-
-impl Drop for ScratchDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn add_counters(t: &mut Totals, c: &Counters) {
     t.accepted += Counters::get(&c.results_accepted);
     t.handed += Counters::get(&c.jobs_handed_out);
@@ -593,13 +321,6 @@ fn add_counters(t: &mut Totals, c: &Counters) {
     }
     for (k, v) in c.rejections() {
         *t.rejected.entry(k.to_owned()).or_default() += v;
-    }
-}
-
-fn signal(child: &Child, sig: libc::c_int) {
-    // SAFETY: kill(2) on our own child's pid; it has not been reaped (we hold it).
-    unsafe {
-        libc::kill(child.id() as libc::pid_t, sig);
     }
 }
 
