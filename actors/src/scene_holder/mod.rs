@@ -7,11 +7,11 @@ use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
-use crate::edit::{apply, Edit, EditError};
+use crate::presenter::stats::Counters;
+use crate::scene::edit::{apply, Edit, EditError};
+use crate::scene::state::{SceneState, StateVersion};
 use crate::scheduler::StateChanged;
-use crate::state::{SceneState, StateVersion};
-use crate::stats::Counters;
-use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 
 /// Apply one edit; answers the new version.
 #[derive(Message, Debug, Clone)]

@@ -28,9 +28,9 @@ use sha2::Sha256;
 use subtle::ConstantTimeEq;
 use xxhash_rust::xxh3::Xxh3;
 
-use crate::auth::NONCE_LEN;
-use crate::protocol::{FrameNo, JobResult, PackedRadiance, SetNo};
-use crate::state::StateVersion;
+use crate::scene::state::StateVersion;
+use crate::wire::auth::NONCE_LEN;
+use crate::wire::protocol::{FrameNo, JobResult, PackedRadiance, SetNo};
 
 type HmacSha256 = Hmac<Sha256>;
 
@@ -223,6 +223,6 @@ mod tests {
         let ResultKey::Authenticated(k) = ResultKey::derive(Some(b"s".as_slice()), &n) else {
             panic!("a secret gives an authenticating key");
         };
-        assert_ne!(k, crate::auth::mac(b"s", &n));
+        assert_ne!(k, crate::wire::auth::mac(b"s", &n));
     }
 }

@@ -7,17 +7,24 @@
 //! paper's heuristic measures its time) and with every result; and hands a frame over,
 //! once, when the display closes it.
 
+pub mod accumulate;
+pub mod frame_table;
+pub mod packed_frame;
+pub mod wait_heuristic;
+
 use std::sync::Arc;
 
 use actix::prelude::*;
 
-use crate::frame_table::{ClosedFrame, ConnId, FrameTable, Verdict};
-use crate::protocol::{FrameNo, JobResult};
+use crate::assembler::frame_table::{Admission, ClosedFrame, FrameTable};
+use crate::connection::workers::WorkerTable;
+use crate::presenter::stats::Counters;
+use crate::scene::state::StateVersion;
+use crate::scheduler::sets::SetTable;
 use crate::scheduler::{FrameScheduled, JobsHandedOut};
-use crate::sets::SetTable;
-use crate::state::StateVersion;
-use crate::stats::Counters;
-use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{FrameNo, JobResult};
 
 /// A connection received a well-formed result (pixel count already checked).
 #[derive(Message)]
@@ -51,6 +58,8 @@ pub struct Assembler {
     table: FrameTable,
     progress_to: Recipient<FrameProgress>,
     counters: Arc<Counters>,
+    /// Late results are counted per worker too (the status panel).
+    workers: Arc<WorkerTable>,
     restarts: RestartTracker,
 }
 
@@ -59,12 +68,14 @@ impl Assembler {
         sets: Arc<SetTable>,
         progress_to: Recipient<FrameProgress>,
         counters: Arc<Counters>,
+        workers: Arc<WorkerTable>,
         policy: RestartPolicy,
     ) -> Self {
         Self {
             table: FrameTable::new(sets),
             progress_to,
             counters,
+            workers,
             restarts: RestartTracker::new(policy),
         }
     }
@@ -107,10 +118,10 @@ impl Handler<ResultArrived> for Assembler {
     fn handle(&mut self, msg: ResultArrived, ctx: &mut Context<Self>) {
         self.guarded(ctx, move |a| {
             let JobResult { frame, set, state_version, radiance, .. } = msg.result;
-            let verdict = a.table.accept(msg.conn, frame, set, state_version, radiance);
+            let admission = a.table.accept(msg.conn, frame, set, state_version, radiance);
             let c = &a.counters;
-            match verdict {
-                Verdict::Accepted { back, total } => {
+            match admission {
+                Admission::Accepted { back, total } => {
                     Counters::add(&c.results_accepted, 1);
                     let started = true;
                     a.progress_to.do_send(FrameProgress {
@@ -121,15 +132,15 @@ impl Handler<ResultArrived> for Assembler {
                         started,
                     });
                 }
-                Verdict::Late => {
+                Admission::Late => {
                     Counters::add(&c.dropped_late, 1);
-                    c.workers_table.late(msg.conn);
+                    a.workers.late(msg.conn);
                 }
-                Verdict::Duplicate => Counters::add(&c.dropped_duplicate, 1),
-                Verdict::Unknown => Counters::add(&c.dropped_unknown, 1),
+                Admission::Duplicate => Counters::add(&c.dropped_duplicate, 1),
+                Admission::Unknown => Counters::add(&c.dropped_unknown, 1),
             }
-            if !matches!(verdict, Verdict::Accepted { .. }) {
-                tracing::debug!(conn = msg.conn, frame, set, ?verdict, "result dropped");
+            if !matches!(admission, Admission::Accepted { .. }) {
+                tracing::debug!(conn = msg.conn, frame, set, ?admission, "result dropped");
             }
         });
     }

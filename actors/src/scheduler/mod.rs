@@ -11,20 +11,24 @@
 //! ([`FramesOutdated`]), so that the first frame of the new state is not queued behind
 //! a view the user has left (the edit-to-display latency).
 
+pub mod handout_plan;
+pub mod job_queue;
+pub mod sets;
+
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
 
 use actix::prelude::*;
 
-use crate::frame_table::ConnId;
-use crate::handout_plan::HandOutPlan;
-use crate::job_queue::{Job, JobQueue};
-use crate::protocol::{FrameNo, SetNo};
-use crate::state::SceneState;
-use crate::stats::Counters;
-use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
-use crate::wait_heuristic::Pacing;
+use crate::assembler::wait_heuristic::Pacing;
+use crate::presenter::stats::Counters;
+use crate::scene::state::SceneState;
+use crate::scheduler::handout_plan::HandOutPlan;
+use crate::scheduler::job_queue::{Job, JobQueue};
+use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{FrameNo, SetNo};
 
 /// Most frames in flight however large the grid (each holds a frame table slot).
 const MAX_FRAME_WINDOW: u64 = 64;

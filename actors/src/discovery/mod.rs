@@ -13,6 +13,8 @@
 //! forged announcement can only point a worker at a wrong address, as a wrong
 //! `--master` could; the shared secret remains the only thing that admits a worker.
 
+pub mod announcer;
+
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::Duration;
 
@@ -34,7 +36,7 @@ pub const MAX_NAME_LEN: usize = 64;
 /// What a master says about itself.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Announcement {
-    /// The TCP protocol version it speaks ([`crate::protocol::PROTOCOL_VERSION`]).
+    /// The TCP protocol version it speaks ([`crate::wire::protocol::PROTOCOL_VERSION`]).
     pub protocol: u32,
     /// The address it listens on. An unspecified IP (`0.0.0.0`) means "the address this
     /// datagram came from" ([`Announcement::address`]).

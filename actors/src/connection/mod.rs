@@ -11,6 +11,8 @@
 //! ends this connection only, after a `Rejected` that names the problem; every log
 //! line names the peer. The jobs it held are never handed out again.
 
+pub mod workers;
+
 use std::collections::{HashMap, HashSet, VecDeque};
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -21,21 +23,22 @@ use actix::prelude::*;
 use tokio::net::tcp::OwnedWriteHalf;
 
 use crate::assembler::ResultArrived;
-use crate::asset_store::AssetStore;
-use crate::auth;
-use crate::codec::{MasterCodec, ProtocolError};
-use crate::counted_io::CountedWrite;
-use crate::frame_table::ConnId;
-use crate::integrity::ResultKey;
-use crate::protocol::{
+use crate::presenter::stats::Counters;
+use crate::scene::asset_store::AssetStore;
+use crate::scene::state::StateVersion;
+use crate::scheduler::sets::SetTable;
+use crate::scheduler::{JobAnswered, JobsAssigned, WorkerLeft, WorkerReady};
+use crate::supervision::{contain, InjectPanic};
+use crate::wire::auth;
+use crate::wire::codec::{MasterCodec, ProtocolError};
+use crate::wire::counted_io::CountedWrite;
+use crate::wire::integrity::ResultKey;
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{
     AssetHash, FrameNo, JobResult, MasterMsg, PauseReason, SetNo, WorkerMsg, ASSET_CHUNK_LEN,
     PROTOCOL_VERSION,
 };
-use crate::scheduler::{JobAnswered, JobsAssigned, WorkerLeft, WorkerReady};
-use crate::sets::SetTable;
-use crate::state::StateVersion;
-use crate::stats::Counters;
-use crate::supervisor::{contain, InjectPanic};
+use workers::WorkerTable;
 
 /// Answered (frame, set) pairs remembered to tell duplicates from unknown results.
 const ANSWERED_MEMORY: usize = 4096;
@@ -66,6 +69,8 @@ pub struct ConnectionConfig {
     pub pipeline: u32,
     pub heartbeat: Duration,
     pub peer_timeout: Duration,
+    /// The connected workers, for the status panel; each connection writes its row.
+    pub workers: Arc<WorkerTable>,
 }
 
 /// Where a connection's messages go.
@@ -173,7 +178,7 @@ impl Actor for Connection {
             let c = &self.counters;
             let count = if self.paused.is_some() { &c.paused_workers } else { &c.workers };
             count.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
-            c.workers_table.left(self.id);
+            self.config.workers.left(self.id);
         }
         self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed });
         tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer,
@@ -188,7 +193,7 @@ impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
         }
         self.last_recv = Instant::now();
         if self.welcomed {
-            self.counters.workers_table.heard(self.id, 0);
+            self.config.workers.heard(self.id, 0);
         }
         match item {
             Ok(msg) => {
@@ -301,8 +306,8 @@ impl Connection {
                 self.phase = Phase::Work { key };
                 self.welcomed = true;
                 Counters::add(&self.counters.workers, 1);
-                self.counters.workers_table.joined(self.id, &self.name, self.cores);
-                self.counters.workers_table.located(self.id, &self.peer.ip().to_string());
+                self.config.workers.joined(self.id, &self.name, self.cores);
+                self.config.workers.located(self.id, &self.peer.ip().to_string());
                 tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer, "worker joined");
                 self.send(MasterMsg::Welcome {
                     worker_id: self.id,
@@ -357,7 +362,7 @@ impl Connection {
             Counters::add(&self.counters.paused_workers, 1);
             self.counters.workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
         }
-        self.counters.workers_table.paused(self.id, reason.clone());
+        self.config.workers.paused(self.id, reason.clone());
         self.paused = Some(reason);
     }
 
@@ -369,7 +374,7 @@ impl Connection {
         tracing::info!(conn = self.id, worker = %self.name, peer = %self.peer, "worker resumed");
         self.counters.paused_workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
         Counters::add(&self.counters.workers, 1);
-        self.counters.workers_table.resumed(self.id);
+        self.config.workers.resumed(self.id);
     }
 
     /// Passes new credits on to the scheduler, never letting the worker hold more than k.
@@ -421,8 +426,8 @@ impl Connection {
                     );
                 }
                 self.remember_answered(key);
-                self.counters.workers_table.heard(self.id, 1);
-                self.counters.workers_table.timed(self.id, r.render_us);
+                self.config.workers.heard(self.id, 1);
+                self.config.workers.timed(self.id, r.render_us);
                 let (frame, set) = key;
                 self.links.answered_to.do_send(JobAnswered { conn: self.id, frame, set });
                 self.links.results_to.do_send(ResultArrived { conn: self.id, result: r });
@@ -507,7 +512,7 @@ impl Connection {
     fn reject(&mut self, reason: String, ctx: &mut Context<Self>) {
         tracing::warn!(conn = self.id, worker = %self.name, peer = %self.peer, %reason, "connection rejected");
         Counters::add(&self.counters.connections_rejected, 1);
-        self.counters.note_rejection(crate::stats::rejection_kind(&reason));
+        self.counters.note_rejection(crate::presenter::stats::rejection_kind(&reason));
         self.failed = true;
         self.send(MasterMsg::Rejected { reason });
         self.phase = Phase::Closing;

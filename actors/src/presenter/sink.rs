@@ -12,13 +12,13 @@ use std::thread::JoinHandle;
 use glam::Vec3;
 use thiserror::Error;
 
-use crate::frame_table::ConnId;
-use crate::packed_frame::PackedFrame;
-use crate::protocol::{FrameNo, SetNo};
-use crate::sets::SetTable;
-use crate::state::SceneState;
-use crate::stats::FrameStats;
-use crate::supervisor::contain;
+use crate::assembler::packed_frame::PackedFrame;
+use crate::presenter::stats::FrameStats;
+use crate::scene::state::SceneState;
+use crate::scheduler::sets::SetTable;
+use crate::supervision::contain;
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{FrameNo, SetNo};
 
 /// One frame the display decided to show.
 #[derive(Clone, Debug)]

@@ -9,7 +9,7 @@ use glam::{EulerRot, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::state::{Camera, Environment, Light, MaterialKind, RenderSettings, SceneState};
+use crate::scene::state::{Camera, Environment, Light, MaterialKind, RenderSettings, SceneState};
 
 /// One change of the scene state.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -226,27 +226,13 @@ fn bad(field: &'static str, expected: &'static str, value: impl std::fmt::Debug)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::state::{Geometry, Material, Object, Transform};
+    use crate::scene::state::{Geometry, Material, Object, Resolution};
 
     fn scene() -> SceneState {
-        let mut s = (*crate::job_queue::tests::state(1)).clone();
-        s.objects.push(Object {
-            name: "box".into(),
-            geometry: Geometry::Cube,
-            transform: Transform::default(),
-            materials: vec![0],
-            visible: true,
-        });
-        s.materials.push(Material {
-            name: "white".into(),
-            kind: MaterialKind::Diffuse,
-            base_color: Vec3::splat(0.8),
-            base_color_texture: None,
-            roughness: 0.5,
-            ior: 1.5,
-            emission: Vec3::ZERO,
-        });
-        s
+        let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 45.0);
+        let white = Material { roughness: 0.5, ..Material::diffuse("white", Vec3::splat(0.8)) };
+        SceneState::empty(Resolution { width: 8, height: 8 }, camera)
+            .with_object(Object::new("box", Geometry::Cube), white)
     }
 
     #[test]

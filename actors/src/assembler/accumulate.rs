@@ -6,7 +6,7 @@
 //! too would be the same logic twice and would cost the display actor a pass over every
 //! pixel and a copy of the image per shown frame.
 
-use crate::state::StateVersion;
+use crate::scene::state::StateVersion;
 
 /// Frames shown since the last state change.
 #[derive(Debug, Default)]

@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use crate::frame_table::ConnId;
-use crate::protocol::PauseReason;
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::PauseReason;
 
 /// Window over which a worker's job rate is measured.
 pub const RATE_WINDOW: Duration = Duration::from_secs(2);

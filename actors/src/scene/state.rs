@@ -37,6 +37,33 @@ pub struct SceneState {
     pub render: RenderSettings,
 }
 
+impl SceneState {
+    /// An empty scene seen through `camera`: version 1, seed 0, no objects, materials,
+    /// lights or environment, default render settings. Scene files build the full value
+    /// (`gridlight::scene`); tests and benches start here and add what they need.
+    pub fn empty(resolution: Resolution, camera: Camera) -> Self {
+        Self {
+            version: 1,
+            seed: 0,
+            resolution,
+            camera,
+            objects: Vec::new(),
+            materials: Vec::new(),
+            lights: Vec::new(),
+            environment: None,
+            render: RenderSettings::default(),
+        }
+    }
+
+    /// Adds `object` with `material` as its only material.
+    pub fn with_object(mut self, mut object: Object, material: Material) -> Self {
+        object.materials = vec![self.materials.len() as MaterialId];
+        self.objects.push(object);
+        self.materials.push(material);
+        self
+    }
+}
+
 /// Image size in pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Resolution {
@@ -65,6 +92,14 @@ pub struct Camera {
     pub focus_distance: f32,
 }
 
+impl Camera {
+    /// A pinhole camera at `position` looking at `look_at`, +y up, in focus at `look_at`.
+    pub fn pinhole(position: Vec3, look_at: Vec3, vfov_deg: f32) -> Self {
+        let focus_distance = (look_at - position).length();
+        Self { position, look_at, up: Vec3::Y, vfov_deg, aperture: 0.0, focus_distance }
+    }
+}
+
 /// One placed instance of a piece of geometry.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Object {
@@ -77,6 +112,19 @@ pub struct Object {
     /// no material; built-in shapes have one slot.
     pub materials: Vec<MaterialId>,
     pub visible: bool,
+}
+
+impl Object {
+    /// A visible object at the origin (identity transform) using material 0.
+    pub fn new(name: &str, geometry: Geometry) -> Self {
+        Self {
+            name: name.into(),
+            geometry,
+            transform: Transform::default(),
+            materials: vec![0],
+            visible: true,
+        }
+    }
 }
 
 /// What an object is made of. Files are asset paths relative to an asset root,
@@ -142,6 +190,21 @@ pub struct Material {
     pub ior: f32,
     /// Emitted radiance (linear RGB); non-zero makes the surface a light.
     pub emission: Vec3,
+}
+
+impl Material {
+    /// A Lambertian, untextured, non-emissive material of this albedo.
+    pub fn diffuse(name: &str, base_color: Vec3) -> Self {
+        Self {
+            name: name.into(),
+            kind: MaterialKind::Diffuse,
+            base_color,
+            base_color_texture: None,
+            roughness: 1.0,
+            ior: 1.5,
+            emission: Vec3::ZERO,
+        }
+    }
 }
 
 /// A light that is not emissive geometry.

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 use thiserror::Error;
 
-use crate::protocol::{AssetEntry, AssetHash};
+use crate::wire::protocol::{AssetEntry, AssetHash};
 
 /// Errors reading asset files.
 #[derive(Debug, Error)]

@@ -6,13 +6,13 @@
 //! the display takes, for each shown frame, the edits its version includes and not yet
 //! shown. Versions only grow, so a frame of version `v` includes every edit `≤ v`. The
 //! latency itself is stamped by whoever really shows the frame (the headless writer after
-//! composing it, the window when it draws it): [`crate::stats::FrameStats::stamp_edit_latency`].
+//! composing it, the window when it draws it): [`crate::presenter::stats::FrameStats::stamp_edit_latency`].
 
 use std::collections::VecDeque;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use crate::state::StateVersion;
+use crate::scene::state::StateVersion;
 
 /// Edits remembered at most while no frame shows them (oldest forgotten first), so that
 /// a master whose display stalls cannot grow without bound.

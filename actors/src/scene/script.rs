@@ -22,7 +22,7 @@ use std::time::Duration;
 use serde::Deserialize;
 use thiserror::Error;
 
-use crate::edit::Edit;
+use crate::scene::edit::Edit;
 
 /// Why a script could not be read.
 #[derive(Debug, Error)]
@@ -77,7 +77,7 @@ pub fn load(path: &Path) -> Result<Vec<(Duration, Edit)>, ScriptError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::edit::{CameraEdit, ObjectEdit};
+    use crate::scene::edit::{CameraEdit, ObjectEdit};
     use glam::Vec3;
 
     #[test]

@@ -10,17 +10,16 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use crate::packed_frame::PackedFrame;
-use crate::protocol::{FrameNo, PackedRadiance, SetNo};
-use crate::sets::SetTable;
-use crate::state::{SceneState, StateVersion};
+use crate::assembler::packed_frame::PackedFrame;
+use crate::scene::state::{SceneState, StateVersion};
+use crate::scheduler::sets::SetTable;
+use crate::wire::protocol::{FrameNo, PackedRadiance, SetNo};
 
-/// Identifies one connection (the `worker_id` of its `Welcome`).
-pub type ConnId = u64;
+use crate::wire::protocol::ConnId;
 
 /// What happened to one result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Verdict {
+pub enum Admission {
     /// Scattered into the frame; `back` results of `total` are in.
     Accepted {
         back: u32,
@@ -53,7 +52,7 @@ pub struct ClosedFrame {
 }
 
 #[derive(Debug)]
-struct Slot {
+struct OpenFrame {
     state: Arc<SceneState>,
     /// Connection each set was handed to.
     holder: Vec<Option<ConnId>>,
@@ -65,7 +64,7 @@ struct Slot {
 #[derive(Debug)]
 pub struct FrameTable {
     sets: Arc<SetTable>,
-    frames: BTreeMap<FrameNo, Slot>,
+    frames: BTreeMap<FrameNo, OpenFrame>,
     /// Frames up to and including this one were displayed.
     closed_upto: Option<FrameNo>,
     dropped: Dropped,
@@ -91,7 +90,7 @@ impl FrameTable {
             return;
         }
         let s = self.sets.sets() as usize;
-        self.frames.entry(frame).or_insert(Slot {
+        self.frames.entry(frame).or_insert(OpenFrame {
             state,
             holder: vec![None; s],
             back: 0,
@@ -117,15 +116,15 @@ impl FrameTable {
         set: SetNo,
         version: StateVersion,
         radiance: PackedRadiance,
-    ) -> Verdict {
-        let verdict = self.judge(conn, frame, set, version, radiance);
-        match verdict {
-            Verdict::Late => self.dropped.late += 1,
-            Verdict::Duplicate => self.dropped.duplicate += 1,
-            Verdict::Unknown => self.dropped.unknown += 1,
-            Verdict::Accepted { .. } => {}
+    ) -> Admission {
+        let admission = self.judge(conn, frame, set, version, radiance);
+        match admission {
+            Admission::Late => self.dropped.late += 1,
+            Admission::Duplicate => self.dropped.duplicate += 1,
+            Admission::Unknown => self.dropped.unknown += 1,
+            Admission::Accepted { .. } => {}
         }
-        verdict
+        admission
     }
 
     fn judge(
@@ -135,24 +134,24 @@ impl FrameTable {
         set: SetNo,
         version: StateVersion,
         radiance: PackedRadiance,
-    ) -> Verdict {
+    ) -> Admission {
         if self.is_closed(frame) {
-            return Verdict::Late;
+            return Admission::Late;
         }
         if self.sets.pixels(set).is_none_or(|p| p.len() != radiance.len()) {
-            return Verdict::Unknown;
+            return Admission::Unknown;
         }
-        let Some(slot) = self.frames.get_mut(&frame) else { return Verdict::Unknown };
+        let Some(slot) = self.frames.get_mut(&frame) else { return Admission::Unknown };
         if slot.holder[set as usize] != Some(conn) || slot.state.version != version {
-            return Verdict::Unknown;
+            return Admission::Unknown;
         }
         if slot.results.contains(set) {
-            return Verdict::Duplicate;
+            return Admission::Duplicate;
         }
         slot.back += 1;
         let PackedRadiance::Rgb9e5(words) = radiance;
         slot.results.insert(set, words);
-        Verdict::Accepted { back: slot.back, total: slot.holder.len() as u32 }
+        Admission::Accepted { back: slot.back, total: slot.holder.len() as u32 }
     }
 
     /// Takes `frame` out for display; it and every earlier frame count as displayed
@@ -210,10 +209,10 @@ impl FrameTable {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::job_queue::tests::state;
-    use crate::packing::{encode_rgb9e5, pack};
-    use crate::protocol::{Partition, SetsConfig};
-    use crate::state::Resolution;
+    use crate::scene::state::Resolution;
+    use crate::scheduler::job_queue::tests::state;
+    use crate::wire::packing::{encode_rgb9e5, pack};
+    use crate::wire::protocol::{Partition, SetsConfig};
     use glam::Vec3;
 
     fn table() -> FrameTable {
@@ -235,8 +234,8 @@ mod tests {
         t.open(0, state(3));
         assert!(!t.handed_out(0, 1, 7));
         assert!(!t.handed_out(0, 2, 7), "another set of the same frame is no re-hand-out");
-        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Verdict::Accepted { back: 1, total: 4 });
-        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Verdict::Duplicate);
+        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Admission::Accepted { back: 1, total: 4 });
+        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Admission::Duplicate);
         let closed = t.close(0).expect("open frame");
         assert_eq!(closed.back, 1);
         let (radiance, mask) = closed.results.unpack();
@@ -265,13 +264,13 @@ mod tests {
         let mut t = table();
         t.open(0, state(3));
         t.handed_out(0, 1, 7);
-        assert_eq!(t.accept(8, 0, 1, 3, radiance(1.0)), Verdict::Unknown, "other connection");
-        assert_eq!(t.accept(7, 0, 2, 3, radiance(1.0)), Verdict::Unknown, "set not handed out");
-        assert_eq!(t.accept(7, 0, 1, 4, radiance(1.0)), Verdict::Unknown, "wrong version");
-        assert_eq!(t.accept(7, 5, 1, 3, radiance(1.0)), Verdict::Unknown, "frame never opened");
-        assert_eq!(t.accept(7, 0, 9, 3, radiance(1.0)), Verdict::Unknown, "no such set");
+        assert_eq!(t.accept(8, 0, 1, 3, radiance(1.0)), Admission::Unknown, "other connection");
+        assert_eq!(t.accept(7, 0, 2, 3, radiance(1.0)), Admission::Unknown, "set not handed out");
+        assert_eq!(t.accept(7, 0, 1, 4, radiance(1.0)), Admission::Unknown, "wrong version");
+        assert_eq!(t.accept(7, 5, 1, 3, radiance(1.0)), Admission::Unknown, "frame never opened");
+        assert_eq!(t.accept(7, 0, 9, 3, radiance(1.0)), Admission::Unknown, "no such set");
         let short = PackedRadiance::Rgb9e5(vec![encode_rgb9e5(Vec3::ONE); 3]);
-        assert_eq!(t.accept(7, 0, 1, 3, short.clone()), Verdict::Unknown, "wrong pixel count");
+        assert_eq!(t.accept(7, 0, 1, 3, short.clone()), Admission::Unknown, "wrong pixel count");
         assert_eq!(t.dropped().unknown, 6);
         assert_eq!(t.progress(0), Some((0, 4)));
     }
@@ -285,8 +284,8 @@ mod tests {
         t.handed_out(1, 0, 1);
         let closed = t.close(1).expect("frame 1");
         assert!(closed.results.unpack().1.iter().all(|m| !m));
-        assert_eq!(t.accept(1, 0, 0, 1, radiance(1.0)), Verdict::Late, "passed-over frame");
-        assert_eq!(t.accept(1, 1, 0, 1, radiance(1.0)), Verdict::Late);
+        assert_eq!(t.accept(1, 0, 0, 1, radiance(1.0)), Admission::Late, "passed-over frame");
+        assert_eq!(t.accept(1, 1, 0, 1, radiance(1.0)), Admission::Late);
         assert!(t.close(0).is_none() && t.close(1).is_none());
         t.open(1, state(1));
         assert_eq!(t.open_frames(), 0, "a displayed frame was reopened");

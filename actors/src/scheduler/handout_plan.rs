@@ -29,9 +29,9 @@
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::time::{Duration, Instant};
 
-use crate::frame_table::ConnId;
-use crate::protocol::{FrameNo, SetNo};
-use crate::wait_heuristic::Pacing;
+use crate::assembler::wait_heuristic::Pacing;
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{FrameNo, SetNo};
 
 /// Weight of a new job-time sample in the running estimate.
 const JOB_TIME_GAIN: f64 = 0.25;
@@ -221,7 +221,7 @@ impl HandOutPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wait_heuristic::Heuristic;
+    use crate::assembler::wait_heuristic::Heuristic;
 
     const MS: Duration = Duration::from_millis(1);
 

@@ -9,7 +9,7 @@
 use glam::Vec3;
 use thiserror::Error;
 
-use crate::protocol::PackedRadiance;
+use crate::wire::protocol::PackedRadiance;
 
 const MANTISSA_BITS: i32 = 9;
 const EXP_BIAS: i32 = 15;

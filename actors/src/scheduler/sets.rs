@@ -16,8 +16,8 @@
 
 use thiserror::Error;
 
-use crate::protocol::{Partition, SetNo, SetsConfig};
-use crate::state::Resolution;
+use crate::scene::state::Resolution;
+use crate::wire::protocol::{Partition, SetNo, SetsConfig};
 
 /// Why a partition cannot be made.
 #[derive(Debug, Error, PartialEq, Eq)]

@@ -16,13 +16,13 @@ use tokio::io::AsyncWriteExt;
 use tokio::net::{TcpListener, TcpStream};
 use tokio_util::codec::FramedRead;
 
-use crate::codec::{to_frame, MasterCodec};
 use crate::connection::{Connection, ConnectionConfig, ConnectionEnded, ConnectionLinks, Kill};
-use crate::counted_io::{CountedRead, CountedWrite};
-use crate::frame_table::ConnId;
-use crate::protocol::MasterMsg;
-use crate::stats::Counters;
-use crate::supervisor::InjectPanic;
+use crate::presenter::stats::Counters;
+use crate::supervision::InjectPanic;
+use crate::wire::codec::{to_frame, MasterCodec};
+use crate::wire::counted_io::{CountedRead, CountedWrite};
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::MasterMsg;
 
 /// Internal: one accepted socket (or accept error).
 #[derive(Message)]

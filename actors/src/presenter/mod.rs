@@ -6,7 +6,11 @@
 //! frames shown with the same state version (the sink accumulates their pixels) and
 //! sends one [`ShownFrame`] per shown frame to the sink thread. Skipped frames only count.
 //!
-//! [`wait_heuristic`]: crate::wait_heuristic
+//! [`wait_heuristic`]: crate::assembler::wait_heuristic
+
+pub mod edit_latency;
+pub mod sink;
+pub mod stats;
 
 use std::collections::BTreeMap;
 use std::sync::mpsc::{SyncSender, TrySendError};
@@ -16,18 +20,19 @@ use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
-use crate::accumulate::Accumulator;
+use crate::assembler::accumulate::Accumulator;
+use crate::assembler::frame_table::ClosedFrame;
+use crate::assembler::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
 use crate::assembler::{CloseFrame, FrameProgress};
-use crate::frame_table::ClosedFrame;
-use crate::protocol::FrameNo;
+use crate::connection::workers::WorkerTable;
+use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
+use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
 use crate::scheduler::{FrameDisplayed, FramesAbandoned, FramesOutdated};
-use crate::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
-use crate::stats::{useful_fraction, Counters, FrameStats};
-use crate::supervisor::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
-use crate::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
+use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::wire::protocol::FrameNo;
 
 /// Frames handed to the sink thread and not yet shown, at most, by default: two keep a
-/// fast sink busy. An interactive master uses one ([`DisplayConfig::sink_in_flight`]): a
+/// fast sink busy. An interactive master uses one ([`PresenterConfig::sink_in_flight`]): a
 /// frame waiting behind another in the sink is a frame decided one compose time before
 /// it is shown, so it shows an older view than the one decided when the sink is free.
 pub const DEFAULT_SINK_IN_FLIGHT: usize = 2;
@@ -72,7 +77,7 @@ struct Pending {
 }
 
 /// Pacing, the frames being waited on, accumulation and the sink.
-pub struct Display {
+pub struct Presenter {
     pacing: Pacing,
     /// Time the last shown frame took (I_t's denominator).
     last_frame_time: Duration,
@@ -104,6 +109,8 @@ pub struct Display {
     close_to: Recipient<CloseFrame>,
     displayed_to: Recipient<FrameDisplayed>,
     counters: Arc<Counters>,
+    /// The connected workers: the paused ones are listed in each frame's statistics.
+    workers: Arc<WorkerTable>,
     report: Arc<Report>,
     restarts: RestartTracker,
     finished: bool,
@@ -112,7 +119,7 @@ pub struct Display {
 }
 
 /// Construction parameters of the display.
-pub struct DisplayConfig {
+pub struct PresenterConfig {
     pub pacing: Pacing,
     /// I_t's denominator before the first frame was shown.
     pub initial_frame_time: Duration,
@@ -122,13 +129,14 @@ pub struct DisplayConfig {
     pub sink_in_flight: usize,
 }
 
-impl Display {
+impl Presenter {
     pub fn new(
-        config: DisplayConfig,
+        config: PresenterConfig,
         sink: Box<dyn FrameSink>,
         close_to: Recipient<CloseFrame>,
         displayed_to: Recipient<FrameDisplayed>,
         counters: Arc<Counters>,
+        workers: Arc<WorkerTable>,
         report: Arc<Report>,
     ) -> Self {
         Self {
@@ -153,6 +161,7 @@ impl Display {
             close_to,
             displayed_to,
             counters,
+            workers,
             report,
             restarts: RestartTracker::new(config.policy),
             finished: false,
@@ -161,7 +170,7 @@ impl Display {
     }
 }
 
-impl Actor for Display {
+impl Actor for Presenter {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
@@ -178,7 +187,7 @@ impl Actor for Display {
     }
 }
 
-impl Handler<FrameProgress> for Display {
+impl Handler<FrameProgress> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: FrameProgress, ctx: &mut Context<Self>) {
         if self.last_closed.is_some_and(|c| msg.frame <= c) {
@@ -200,7 +209,7 @@ impl Handler<FrameProgress> for Display {
     }
 }
 
-impl Handler<SinkDone> for Display {
+impl Handler<SinkDone> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: SinkDone, ctx: &mut Context<Self>) {
         self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
@@ -216,7 +225,7 @@ impl Handler<SinkDone> for Display {
 #[rtype(result = "Result<(), String>")]
 pub struct SetPacing(pub Pacing);
 
-impl Handler<SetPacing> for Display {
+impl Handler<SetPacing> for Presenter {
     type Result = Result<(), String>;
     fn handle(&mut self, msg: SetPacing, ctx: &mut Context<Self>) -> Self::Result {
         msg.0.validate()?;
@@ -227,14 +236,14 @@ impl Handler<SetPacing> for Display {
     }
 }
 
-impl Handler<Shutdown> for Display {
+impl Handler<Shutdown> for Presenter {
     type Result = ();
     fn handle(&mut self, _: Shutdown, _: &mut Context<Self>) {
         self.finish(None);
     }
 }
 
-impl Handler<FramesAbandoned> for Display {
+impl Handler<FramesAbandoned> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: FramesAbandoned, ctx: &mut Context<Self>) {
         self.abandoned_before = self.abandoned_before.max(msg.before);
@@ -242,7 +251,7 @@ impl Handler<FramesAbandoned> for Display {
     }
 }
 
-impl Handler<FramesOutdated> for Display {
+impl Handler<FramesOutdated> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: FramesOutdated, ctx: &mut Context<Self>) {
         self.outdated_before = self.outdated_before.max(msg.before);
@@ -250,16 +259,16 @@ impl Handler<FramesOutdated> for Display {
     }
 }
 
-impl Handler<InjectPanic> for Display {
+impl Handler<InjectPanic> for Presenter {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        if let Err(msg) = contain(|| panic!("injected panic in the display")) {
+        if let Err(msg) = contain(|| panic!("injected panic in the presenter")) {
             self.restart_after(&msg, ctx);
         }
     }
 }
 
-impl Display {
+impl Presenter {
     /// Decides about the oldest frame not yet displayed.
     fn evaluate(&mut self, ctx: &mut Context<Self>) {
         if self.closing || self.finished || self.sink_in_flight >= self.max_sink_in_flight {
@@ -401,7 +410,7 @@ impl Display {
             workers: Counters::get(&c.workers),
             paused_workers: Counters::get(&c.paused_workers),
             paused: if Counters::get(&c.paused_workers) > 0 {
-                c.workers_table.paused_list()
+                self.workers.paused_list()
             } else {
                 Vec::new()
             },
@@ -475,7 +484,7 @@ impl Display {
     /// After a contained panic: drop the accumulation and wait for the next frame.
     fn restart_after(&mut self, msg: &str, ctx: &mut Context<Self>) {
         let counters = self.counters.clone();
-        if after_panic("display", msg, &mut self.restarts, &counters, ctx) {
+        if after_panic("presenter", msg, &mut self.restarts, &counters, ctx) {
             self.accum = Accumulator::default();
             self.closing = false;
             ctx.run_later(Duration::ZERO, |act, ctx| act.evaluate(ctx));

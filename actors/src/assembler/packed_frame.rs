@@ -11,9 +11,9 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use crate::packing::decode_rgb9e5;
-use crate::protocol::SetNo;
-use crate::sets::SetTable;
+use crate::scheduler::sets::SetTable;
+use crate::wire::packing::decode_rgb9e5;
+use crate::wire::protocol::SetNo;
 
 /// The accepted results of one frame, packed (RGB9E5 words in set order).
 #[derive(Clone, Debug)]
@@ -150,9 +150,9 @@ mod sse2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::packing::encode_rgb9e5;
-    use crate::protocol::{Partition, SetsConfig};
-    use crate::state::Resolution;
+    use crate::scene::state::Resolution;
+    use crate::wire::packing::encode_rgb9e5;
+    use crate::wire::protocol::{Partition, SetsConfig};
 
     #[test]
     fn unpacks_each_set_to_its_own_pixels_and_nothing_else() {

@@ -31,7 +31,7 @@
 //!
 //! # Result integrity
 //! Every [`JobResult`] carries a 128-bit `tag` over (frame, set, state version,
-//! radiance) under a per-connection key; see [`crate::integrity`]. The key is derived
+//! radiance) under a per-connection key; see [`crate::wire::integrity`]. The key is derived
 //! from the shared secret (empty without one) and this connection's `Challenge` nonce,
 //! so it never travels and differs per connection. The master verifies the tag before
 //! any other check of a result; a mismatch is rejected like any bad input (kind
@@ -64,7 +64,7 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
-use crate::state::{SceneState, StateVersion};
+use crate::scene::state::{SceneState, StateVersion};
 
 /// Bumped on every incompatible change of any message below.
 /// 2: RGB9E5 radiance travels as one MessagePack `bin` of little-endian `u32`s.
@@ -90,6 +90,9 @@ pub const PEER_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Number of a scheduled frame; strictly increasing within one master run.
 pub type FrameNo = u64;
+
+/// Identifies one connection on the master (the `worker_id` of its `Welcome`).
+pub type ConnId = u64;
 
 /// Number of a pixel set within a frame, `0..sets`.
 pub type SetNo = u32;
@@ -273,8 +276,8 @@ pub struct JobResult {
     pub radiance: PackedRadiance,
     /// Time spent rendering, in microseconds.
     pub render_us: u64,
-    /// [`crate::integrity::ResultKey::tag`] over the fields above (`render_us` excepted).
-    pub tag: [u8; crate::integrity::TAG_LEN],
+    /// [`crate::wire::integrity::ResultKey::tag`] over the fields above (`render_us` excepted).
+    pub tag: [u8; crate::wire::integrity::TAG_LEN],
 }
 
 /// Messages from the master to a worker.

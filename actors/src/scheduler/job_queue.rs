@@ -18,8 +18,8 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
-use crate::protocol::{FrameNo, SetNo};
-use crate::state::SceneState;
+use crate::scene::state::SceneState;
+use crate::wire::protocol::{FrameNo, SetNo};
 
 /// One unit of work: render set `set` of frame `frame` with `state`.
 #[derive(Clone, Debug)]
@@ -216,29 +216,14 @@ pub fn first_set(frame: FrameNo, sets: u32) -> SetNo {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::state::*;
+    use crate::scene::state::*;
     use glam::Vec3;
     use std::collections::HashMap;
 
     pub(crate) fn state(version: u64) -> Arc<SceneState> {
-        Arc::new(SceneState {
-            version,
-            seed: 1,
-            resolution: Resolution { width: 8, height: 8 },
-            camera: Camera {
-                position: Vec3::Z,
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                vfov_deg: 45.0,
-                aperture: 0.0,
-                focus_distance: 1.0,
-            },
-            objects: vec![],
-            materials: vec![],
-            lights: vec![],
-            environment: None,
-            render: RenderSettings::default(),
-        })
+        let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 45.0);
+        let resolution = Resolution { width: 8, height: 8 };
+        Arc::new(SceneState { version, seed: 1, ..SceneState::empty(resolution, camera) })
     }
 
     #[test]

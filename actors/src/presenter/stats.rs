@@ -11,8 +11,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::protocol::FrameNo;
-use crate::state::StateVersion;
+use crate::scene::state::StateVersion;
+use crate::wire::protocol::FrameNo;
 
 /// Monotonic counters of the whole master run.
 #[derive(Debug, Default)]
@@ -48,10 +48,8 @@ pub struct Counters {
     /// Connections ended on an error, by kind ([`rejection_kind`], `"full"` for
     /// refused at the cap, `"io"` for a broken stream); bounded: the kinds are fixed.
     pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
-    /// Connected workers, for the status panel.
-    pub workers_table: crate::workers::WorkerTable,
     /// Edits not yet shown, for the edit-to-display latency.
-    pub edits: crate::edit_latency::EditLog,
+    pub edits: crate::presenter::edit_latency::EditLog,
 }
 
 impl Counters {
@@ -127,7 +125,7 @@ pub struct FrameStats {
     /// Connected workers that paused because their desk's owner is active.
     pub paused_workers: u64,
     /// Those workers, each with its reason.
-    pub paused: Vec<crate::workers::PausedWorker>,
+    pub paused: Vec<crate::connection::workers::PausedWorker>,
     pub bytes_in: u64,
     pub bytes_out: u64,
     /// Frames shown so far in this run, this one included.

@@ -44,7 +44,7 @@ impl Default for RestartPolicy {
 
 /// What to do after a failure.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Verdict {
+pub enum RestartDecision {
     /// Restart after this back-off.
     Restart { after: Duration },
     /// Too many failures in the window: escalate.
@@ -64,17 +64,19 @@ impl RestartTracker {
     }
 
     /// Records a failure at `now` and says what to do.
-    pub fn on_failure(&mut self, now: Instant) -> Verdict {
+    pub fn on_failure(&mut self, now: Instant) -> RestartDecision {
         while self.failures.front().is_some_and(|t| now.duration_since(*t) > self.policy.window) {
             self.failures.pop_front();
         }
         self.failures.push_back(now);
         let n = self.failures.len();
         if n > self.policy.max_restarts {
-            return Verdict::GiveUp;
+            return RestartDecision::GiveUp;
         }
         let factor = 1u32 << (n - 1).min(16);
-        Verdict::Restart { after: (self.policy.backoff * factor).min(self.policy.max_backoff) }
+        RestartDecision::Restart {
+            after: (self.policy.backoff * factor).min(self.policy.max_backoff),
+        }
     }
 
     /// Failures within the window as of the last one.
@@ -112,16 +114,16 @@ pub fn after_panic<A>(
     who: &str,
     message: &str,
     tracker: &mut RestartTracker,
-    counters: &crate::stats::Counters,
+    counters: &crate::presenter::stats::Counters,
     ctx: &mut actix::Context<A>,
 ) -> bool
 where
     A: actix::Actor<Context = actix::Context<A>>,
 {
     use actix::AsyncContext;
-    crate::stats::Counters::add(&counters.panics_contained, 1);
+    crate::presenter::stats::Counters::add(&counters.panics_contained, 1);
     match tracker.on_failure(Instant::now()) {
-        Verdict::Restart { after } => {
+        RestartDecision::Restart { after } => {
             tracing::error!(
                 actor = who,
                 cause = message,
@@ -131,7 +133,7 @@ where
             ctx.wait(actix::fut::wrap_future::<_, A>(actix::clock::sleep(after)));
             true
         }
-        Verdict::GiveUp => {
+        RestartDecision::GiveUp => {
             tracing::error!(
                 actor = who,
                 cause = message,
@@ -157,10 +159,10 @@ mod tests {
         };
         let mut t = RestartTracker::new(policy);
         let t0 = Instant::now();
-        assert_eq!(t.on_failure(t0), Verdict::Restart { after: Duration::from_millis(10) });
-        assert_eq!(t.on_failure(t0), Verdict::Restart { after: Duration::from_millis(20) });
-        assert_eq!(t.on_failure(t0), Verdict::Restart { after: Duration::from_millis(25) });
-        assert_eq!(t.on_failure(t0), Verdict::GiveUp);
+        assert_eq!(t.on_failure(t0), RestartDecision::Restart { after: Duration::from_millis(10) });
+        assert_eq!(t.on_failure(t0), RestartDecision::Restart { after: Duration::from_millis(20) });
+        assert_eq!(t.on_failure(t0), RestartDecision::Restart { after: Duration::from_millis(25) });
+        assert_eq!(t.on_failure(t0), RestartDecision::GiveUp);
     }
 
     #[test]
@@ -169,8 +171,11 @@ mod tests {
             RestartPolicy { max_restarts: 1, window: Duration::from_secs(1), ..Default::default() };
         let mut t = RestartTracker::new(policy);
         let t0 = Instant::now();
-        assert!(matches!(t.on_failure(t0), Verdict::Restart { .. }));
-        assert!(matches!(t.on_failure(t0 + Duration::from_secs(2)), Verdict::Restart { .. }));
+        assert!(matches!(t.on_failure(t0), RestartDecision::Restart { .. }));
+        assert!(matches!(
+            t.on_failure(t0 + Duration::from_secs(2)),
+            RestartDecision::Restart { .. }
+        ));
         assert_eq!(t.recent_failures(), 1);
     }
 

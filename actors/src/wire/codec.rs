@@ -15,7 +15,7 @@ use serde::Serialize;
 use thiserror::Error;
 use tokio_util::codec::{Decoder, Encoder};
 
-use crate::protocol::{MasterMsg, WorkerMsg, MAX_FRAME_LEN};
+use crate::wire::protocol::{MasterMsg, WorkerMsg, MAX_FRAME_LEN};
 
 /// Bytes of the length prefix.
 pub const LEN_PREFIX: usize = 4;
@@ -158,8 +158,8 @@ pub fn to_frame<T: Serialize>(msg: &T) -> Result<Vec<u8>, ProtocolError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrity::TAG_LEN;
-    use crate::protocol::{JobResult, PackedRadiance, Partition, SetsConfig};
+    use crate::wire::integrity::TAG_LEN;
+    use crate::wire::protocol::{JobResult, PackedRadiance, Partition, SetsConfig};
 
     fn roundtrip_master(msg: MasterMsg) -> MasterMsg {
         let mut out = WorkerCodec::new();
