@@ -19,12 +19,28 @@ use actix::prelude::*;
 use crate::assembler::frame_table::{Admission, ClosedFrame, FrameTable};
 use crate::connection::workers::WorkerTable;
 use crate::presenter::stats::Counters;
-use crate::scene::state::StateVersion;
+use crate::presenter::FrameProgress;
+use crate::scene::state::SceneState;
 use crate::scheduler::sets::SetTable;
-use crate::scheduler::{FrameScheduled, JobsHandedOut};
 use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wire::protocol::ConnId;
-use crate::wire::protocol::{FrameNo, JobResult};
+use crate::wire::protocol::{FrameNo, JobResult, SetNo};
+
+/// To the assembler: these (frame, set) pairs were handed to `conn`.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct JobsHandedOut {
+    pub conn: ConnId,
+    pub jobs: Vec<(FrameNo, SetNo)>,
+}
+
+/// To the assembler: all sets of `frame` were queued with `state`.
+#[derive(Message, Clone)]
+#[rtype(result = "()")]
+pub struct FrameScheduled {
+    pub frame: FrameNo,
+    pub state: Arc<SceneState>,
+}
 
 /// A connection received a well-formed result (pixel count already checked).
 #[derive(Message)]
@@ -39,18 +55,6 @@ pub struct ResultArrived {
 #[rtype(result = "Option<ClosedFrame>")]
 pub struct CloseFrame {
     pub frame: FrameNo,
-}
-
-/// To the display: `back` of `total` jobs of `frame` are in.
-#[derive(Message, Clone, Copy, Debug)]
-#[rtype(result = "()")]
-pub struct FrameProgress {
-    pub frame: FrameNo,
-    pub state_version: StateVersion,
-    pub back: u32,
-    pub total: u32,
-    /// A job of the frame was handed out: its computation has started.
-    pub started: bool,
 }
 
 /// The frame table and where progress goes.

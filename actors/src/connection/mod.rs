@@ -23,11 +23,13 @@ use actix::prelude::*;
 use tokio::net::tcp::OwnedWriteHalf;
 
 use crate::assembler::ResultArrived;
+use crate::listener::ConnectionEnded;
 use crate::presenter::stats::Counters;
 use crate::scene::asset_store::AssetStore;
 use crate::scene::state::StateVersion;
+use crate::scheduler::job_queue::Job;
 use crate::scheduler::sets::SetTable;
-use crate::scheduler::{JobAnswered, JobsAssigned, WorkerLeft, WorkerReady};
+use crate::scheduler::{JobAnswered, WorkerLeft, WorkerReady};
 use crate::supervision::{contain, InjectPanic};
 use crate::wire::auth;
 use crate::wire::codec::{MasterCodec, ProtocolError};
@@ -47,18 +49,15 @@ const MAX_NAME_LEN: usize = 256;
 /// How long a rejected peer gets to read its `Rejected` before the socket is dropped.
 const CLOSE_GRACE: Duration = Duration::from_secs(2);
 
+/// To a connection: jobs handed to it.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct JobsAssigned(pub Vec<Job>);
+
 /// Test hook: end this connection abruptly, as a crash would (no `Rejected`).
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct Kill;
-
-/// To the listener: this connection ended; `failed` when it ended on an error.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct ConnectionEnded {
-    pub conn: ConnId,
-    pub failed: bool,
-}
 
 /// What every connection shares.
 pub struct ConnectionConfig {

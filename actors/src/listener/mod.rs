@@ -16,13 +16,21 @@ use tokio::io::AsyncWriteExt;
 use tokio::net::{TcpListener, TcpStream};
 use tokio_util::codec::FramedRead;
 
-use crate::connection::{Connection, ConnectionConfig, ConnectionEnded, ConnectionLinks, Kill};
+use crate::connection::{Connection, ConnectionConfig, ConnectionLinks, Kill};
 use crate::presenter::stats::Counters;
 use crate::supervision::InjectPanic;
 use crate::wire::codec::{to_frame, MasterCodec};
 use crate::wire::counted_io::{CountedRead, CountedWrite};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::MasterMsg;
+
+/// To the listener: this connection ended; `failed` when it ended on an error.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct ConnectionEnded {
+    pub conn: ConnId,
+    pub failed: bool,
+}
 
 /// Internal: one accepted socket (or accept error).
 #[derive(Message)]

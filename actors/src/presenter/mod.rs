@@ -23,11 +23,12 @@ use actix::prelude::*;
 use crate::assembler::accumulate::Accumulator;
 use crate::assembler::frame_table::ClosedFrame;
 use crate::assembler::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
-use crate::assembler::{CloseFrame, FrameProgress};
+use crate::assembler::CloseFrame;
 use crate::connection::workers::WorkerTable;
 use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
 use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
-use crate::scheduler::{FrameDisplayed, FramesAbandoned, FramesOutdated};
+use crate::scene::state::StateVersion;
+use crate::scheduler::FrameDisplayed;
 use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wire::protocol::FrameNo;
 
@@ -36,6 +37,37 @@ use crate::wire::protocol::FrameNo;
 /// frame waiting behind another in the sink is a frame decided one compose time before
 /// it is shown, so it shows an older view than the one decided when the sink is free.
 pub const DEFAULT_SINK_IN_FLIGHT: usize = 2;
+
+/// To the display: `back` of `total` jobs of `frame` are in.
+#[derive(Message, Clone, Copy, Debug)]
+#[rtype(result = "()")]
+pub struct FrameProgress {
+    pub frame: FrameNo,
+    pub state_version: StateVersion,
+    pub back: u32,
+    pub total: u32,
+    /// A job of the frame was handed out: its computation has started.
+    pub started: bool,
+}
+
+/// To the display: frames before `before` were made with an outdated scene state; their
+/// queued jobs were discarded, so only results already held by workers can still come.
+/// The display shows such a frame at once with what it has (or skips it when empty)
+/// instead of waiting for them.
+#[derive(Message, Debug, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct FramesOutdated {
+    pub before: FrameNo,
+}
+
+/// To the display: frames before `before` lost their queued jobs (the scheduler
+/// restarted) and will get no results beyond those already handed out. Waiting for them
+/// says nothing about the workers' speed, so the display decides on them at once.
+#[derive(Message, Debug, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct FramesAbandoned {
+    pub before: FrameNo,
+}
 
 /// The sink finished one frame (or failed).
 #[derive(Message)]

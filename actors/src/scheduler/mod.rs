@@ -22,7 +22,10 @@ use std::time::Instant;
 use actix::prelude::*;
 
 use crate::assembler::wait_heuristic::Pacing;
+use crate::assembler::{FrameScheduled, JobsHandedOut};
+use crate::connection::JobsAssigned;
 use crate::presenter::stats::Counters;
+use crate::presenter::{FramesAbandoned, FramesOutdated};
 use crate::scene::state::SceneState;
 use crate::scheduler::handout_plan::HandOutPlan;
 use crate::scheduler::job_queue::{Job, JobQueue};
@@ -77,52 +80,12 @@ pub struct FrameDisplayed {
     pub frame: FrameNo,
 }
 
-/// To a connection: jobs handed to it.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct JobsAssigned(pub Vec<Job>);
-
-/// To the assembler: all sets of `frame` were queued with `state`.
-#[derive(Message, Clone)]
-#[rtype(result = "()")]
-pub struct FrameScheduled {
-    pub frame: FrameNo,
-    pub state: Arc<SceneState>,
-}
-
-/// To the assembler: these (frame, set) pairs were handed to `conn`.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct JobsHandedOut {
-    pub conn: ConnId,
-    pub jobs: Vec<(FrameNo, SetNo)>,
-}
-
 /// Where the scheduler's events go.
 pub struct SchedulerLinks {
     pub frames_to: Recipient<FrameScheduled>,
     pub handouts_to: Recipient<JobsHandedOut>,
     pub abandoned_to: Recipient<FramesAbandoned>,
     pub outdated_to: Recipient<FramesOutdated>,
-}
-
-/// To the display: frames before `before` lost their queued jobs (the scheduler
-/// restarted) and will get no results beyond those already handed out. Waiting for them
-/// says nothing about the workers' speed, so the display decides on them at once.
-#[derive(Message, Debug, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct FramesAbandoned {
-    pub before: FrameNo,
-}
-
-/// To the display: frames before `before` were made with an outdated scene state; their
-/// queued jobs were discarded, so only results already held by workers can still come.
-/// The display shows such a frame at once with what it has (or skips it when empty)
-/// instead of waiting for them.
-#[derive(Message, Debug, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct FramesOutdated {
-    pub before: FrameNo,
 }
 
 /// The job queue and the workers waiting for jobs.
