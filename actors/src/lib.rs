@@ -43,4 +43,4 @@ pub use discovery::announcer;
 pub use presenter::{sink, stats};
 pub use scene::{asset_store, edit, script, state};
 pub use scheduler::sets;
-pub use wire::{auth, codec, integrity, packing, protocol};
+pub use wire::{auth, codec, integrity, packing, protocol, rejection};

@@ -23,6 +23,7 @@ use crate::wire::codec::{to_frame, MasterCodec};
 use crate::wire::counted_io::{CountedRead, CountedWrite};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::MasterMsg;
+use crate::wire::rejection::Rejection;
 
 /// To the listener: this connection ended; `failed` when it ended on an error.
 #[derive(Message)]
@@ -111,9 +112,9 @@ impl Handler<Accepted> for Listener {
         if self.conns.len() >= self.max_connections {
             tracing::warn!(%peer, cap = self.max_connections, "connection refused: too many connections");
             Counters::add(&self.counters.connections_rejected, 1);
-            self.counters.note_rejection("full");
-            let reason = format!("the master is full ({} connections)", self.max_connections);
-            actix::spawn(refuse(stream, reason));
+            let why = Rejection::Full { max: self.max_connections };
+            self.counters.note_rejection(why.kind());
+            actix::spawn(refuse(stream, why.to_string()));
             return;
         }
         let _ = stream.set_nodelay(true);

@@ -13,6 +13,7 @@ use serde::Serialize;
 
 use crate::scene::state::StateVersion;
 use crate::wire::protocol::FrameNo;
+use crate::wire::rejection::RejectionKind;
 
 /// Monotonic counters of the whole master run.
 #[derive(Debug, Default)]
@@ -45,8 +46,8 @@ pub struct Counters {
     pub connections_rejected: AtomicU64,
     /// Panics contained at an actor boundary.
     pub panics_contained: AtomicU64,
-    /// Connections ended on an error, by kind ([`rejection_kind`], `"full"` for
-    /// refused at the cap, `"io"` for a broken stream); bounded: the kinds are fixed.
+    /// Connections ended on an error, by kind
+    /// ([`RejectionKind::as_str`]); bounded: the kinds are fixed.
     pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
     /// Edits not yet shown, for the edit-to-display latency.
     pub edits: crate::presenter::edit_latency::EditLog,
@@ -62,7 +63,8 @@ impl Counters {
     }
 
     /// Counts one connection ended on an error of this kind.
-    pub fn note_rejection(&self, kind: &'static str) {
+    pub fn note_rejection(&self, kind: RejectionKind) {
+        let kind = kind.as_str();
         *self
             .rejected_by_kind
             .lock()
@@ -75,26 +77,6 @@ impl Counters {
     pub fn rejections(&self) -> BTreeMap<&'static str, u64> {
         self.rejected_by_kind.lock().unwrap_or_else(|p| p.into_inner()).clone()
     }
-}
-
-/// The kind of a connection's rejection, from the reason it was sent (fault reports).
-pub fn rejection_kind(reason: &str) -> &'static str {
-    const KINDS: [(&str, &str); 13] = [
-        ("integrity check", "corrupt"),
-        ("protocol version", "version"),
-        ("authentication", "auth"),
-        ("empty frame", "empty_frame"),
-        ("exceeds the maximum", "oversized_frame"),
-        ("bad frame", "bad_frame"),
-        ("not given to this worker", "unknown_result"),
-        ("pixels, the set has", "pixel_count"),
-        ("names state version", "state_version"),
-        ("sets, but there are only", "set_range"),
-        ("not in the manifest", "asset"),
-        ("no message from the worker", "timeout"),
-        ("unexpected", "phase"),
-    ];
-    KINDS.iter().find(|(needle, _)| reason.contains(needle)).map_or("other", |(_, k)| k)
 }
 
 /// Statistics of one shown frame; one JSON line each in `--stats` files.
@@ -173,20 +155,10 @@ mod tests {
 
     #[test]
     fn rejections_are_counted_by_kind() {
-        assert_eq!(rejection_kind("bad frame: empty frame (length prefix 0)"), "empty_frame");
-        assert_eq!(rejection_kind("bad frame: undecodable message: x"), "bad_frame");
-        assert_eq!(rejection_kind("authentication failed: wrong shared secret"), "auth");
-        assert_eq!(rejection_kind("something new"), "other");
-        assert_eq!(
-            rejection_kind(
-                "result for frame 3 set 1 failed its integrity check (payload corrupted or forged)"
-            ),
-            "corrupt"
-        );
         let c = Counters::default();
-        c.note_rejection("auth");
-        c.note_rejection("auth");
-        c.note_rejection("full");
+        c.note_rejection(RejectionKind::Auth);
+        c.note_rejection(RejectionKind::Auth);
+        c.note_rejection(RejectionKind::Full);
         assert_eq!(c.rejections().into_iter().collect::<Vec<_>>(), [("auth", 2), ("full", 1)]);
     }
 

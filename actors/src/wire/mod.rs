@@ -3,7 +3,7 @@
 //!
 //! [`protocol`] (every message, the phases and [`protocol::ConnId`]), [`codec`]
 //! (length-prefixed, bounded MessagePack), [`auth`] (HMAC challenge), [`integrity`]
-//! (per-result tags), [`packing`] (RGB9E5 radiance), [`counted_io`] (byte counters
+//! (per-result tags), [`rejection`] (why a connection is ended), [`packing`] (RGB9E5 radiance), [`counted_io`] (byte counters
 //! around a socket).
 
 pub mod auth;
@@ -12,3 +12,4 @@ pub mod counted_io;
 pub mod integrity;
 pub mod packing;
 pub mod protocol;
+pub mod rejection;
