@@ -215,6 +215,8 @@ where
                             "job (frame {frame}, set {set}) names state version {state_version}, which was never sent"
                         )));
                     };
+                    // Tests count these: a (frame, set) received twice was handed out twice.
+                    debug!(frame, set, "job received");
                     if paused {
                         debug!(frame, set, "job dropped: paused");
                         continue;

@@ -59,7 +59,9 @@ impl Proc {
     }
 
     pub fn signal(&self, sig: i32) {
-        assert_eq!(unsafe { libc::kill(self.pid(), sig) }, 0, "signal {sig} delivered");
+        // SAFETY: kill takes plain integers; the pid is this test's own child.
+        let sent = unsafe { libc::kill(self.pid(), sig) };
+        assert_eq!(sent, 0, "signal {sig} delivered");
     }
 
     pub fn stderr(&self) -> String {
