@@ -39,24 +39,34 @@ fn the_quick_evaluation_writes_a_complete_report_whose_stable_claims_hold() {
         assert!(md.contains(heading), "report.md lacks `{heading}`");
         assert!(html.contains(&format!("<h2>{}", &heading[3..])), "index.html lacks `{heading}`");
     }
-    for part in ["## What is real and what is modelled", "## Closing note", "Figure 10 efficiencies", "Figure 5: correlation", "Table 1 (paper: Cornell Box 6.66"] {
+    for part in [
+        "## What is real and what is modelled",
+        "## Closing note",
+        "Figure 10 efficiencies",
+        "Figure 5: correlation",
+        "Table 1 (paper: Cornell Box 6.66",
+    ] {
         assert!(md.contains(part), "report.md lacks `{part}`");
     }
     assert_eq!(md.matches("### The paper").count(), SECTIONS.len());
     assert_eq!(md.matches("### Agreement").count(), SECTIONS.len());
 
-    let results: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("results.json"))
-            .expect("results.json is JSON");
+    let results: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("results.json")).expect("results.json"),
+    )
+    .expect("results.json is JSON");
     let sections = results["sections"].as_array().expect("sections");
     let ids: Vec<&str> = sections.iter().filter_map(|s| s["id"].as_str()).collect();
     assert_eq!(ids, SECTIONS.map(|(id, _)| id));
     for s in sections {
         let claims = s["claims"].as_array().expect("claims");
         assert!(!claims.is_empty(), "{} states no claim", s["id"]);
-        for file in s["plots"].as_array().into_iter().flatten().chain(
-            s["images"].as_array().into_iter().flatten().filter_map(|pair| pair.get(1)),
-        ) {
+        for file in s["plots"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .chain(s["images"].as_array().into_iter().flatten().filter_map(|pair| pair.get(1)))
+        {
             let name = file.as_str().expect("a file name");
             let img = image::open(out.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert!(img.width() > 0 && img.height() > 0);
@@ -86,7 +96,12 @@ fn the_quick_evaluation_writes_a_complete_report_whose_stable_claims_hold() {
     assert!(t1.iter().all(|r| r["frames_per_second"].as_f64() > Some(0.0)));
     let fig5 = &section("fig5")["data"];
     assert!(fig5["frames"].as_array().is_some_and(|f| f.len() > 20), "fig5 showed too few frames");
-    let workers: Vec<u64> = fig5["frames"].as_array().into_iter().flatten().filter_map(|f| f["workers"].as_u64()).collect();
+    let workers: Vec<u64> = fig5["frames"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|f| f["workers"].as_u64())
+        .collect();
     let (lo, hi) = (workers.iter().min().copied(), workers.iter().max().copied());
     assert!(hi > lo, "the simulated grid's resources should vary ({lo:?}..{hi:?})");
     let fig8 = section("fig8")["data"]["rows"].as_array().expect("fig8 rows");

@@ -5,8 +5,8 @@
 use std::path::PathBuf;
 
 use super::GlobalArgs;
-use crate::eval::paper::{self, Context, Options};
 use crate::simgrid::Curve;
+use crate::tools::eval::paper::{self, Context, Options};
 
 /// What every experiment takes.
 #[derive(Debug, Clone, clap::Args)]
@@ -154,7 +154,10 @@ fn apply(e: &Experiment, o: &mut Options) -> anyhow::Result<Option<&'static str>
         Experiment::All(_) => None,
         Experiment::Fig3(a) => {
             if let Some(l) = &a.loss {
-                anyhow::ensure!(l.iter().all(|x| (0.0..1.0).contains(x)), "--loss takes fractions in [0, 1)");
+                anyhow::ensure!(
+                    l.iter().all(|x| (0.0..1.0).contains(x)),
+                    "--loss takes fractions in [0, 1)"
+                );
                 o.fig3.losses = l.clone();
             }
             Some("fig3")
@@ -165,7 +168,10 @@ fn apply(e: &Experiment, o: &mut Options) -> anyhow::Result<Option<&'static str>
             set(&mut o.fig5.curve, a.availability);
             set(&mut o.fig5.period, a.period);
             set(&mut o.fig5.path, a.path.clone());
-            anyhow::ensure!(o.fig5.fps > 0.0 && o.fig5.workers > 0, "--fps and --workers must be positive");
+            anyhow::ensure!(
+                o.fig5.fps > 0.0 && o.fig5.workers > 0,
+                "--fps and --workers must be positive"
+            );
             Some("fig5")
         }
         Experiment::Table1(a) => {
@@ -201,4 +207,3 @@ fn set<T>(slot: &mut T, value: Option<T>) {
         *slot = v;
     }
 }
-

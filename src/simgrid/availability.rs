@@ -75,7 +75,10 @@ mod tests {
     #[test]
     fn square_halves_the_grid_for_half_a_period() {
         let a = Availability { curve: Curve::Square, n: 32, period: 10 };
-        assert_eq!((0..10).map(|i| a.at(i)).collect::<Vec<_>>(), [32, 32, 32, 32, 32, 16, 16, 16, 16, 16]);
+        assert_eq!(
+            (0..10).map(|i| a.at(i)).collect::<Vec<_>>(),
+            [32, 32, 32, 32, 32, 16, 16, 16, 16, 16]
+        );
         assert_eq!(a.peak(), 32);
     }
 

@@ -80,9 +80,8 @@ impl FrameCache {
         let scene = RenderScene::new(Arc::clone(assets), state)
             .map_err(|e| FrameCacheError::Render(e.to_string()))?;
         let pixels = state.resolution.pixels() as u32;
-        let rendered = (0..frames.max(1))
-            .map(|f| render_frame(&scene, u64::from(f), pixels))
-            .collect();
+        let rendered =
+            (0..frames.max(1)).map(|f| render_frame(&scene, u64::from(f), pixels)).collect();
         self.states.push(CachedState { key, frames: rendered });
         Ok(())
     }
@@ -155,7 +154,13 @@ mod tests {
     use crate::render::testscenes;
 
     fn model() -> CostModel {
-        CostModel { samples_per_second: 1e6, spread: 0.0, spp: 1, jobs_measured: 2, time_scale: 1.0 }
+        CostModel {
+            samples_per_second: 1e6,
+            spread: 0.0,
+            spp: 1,
+            jobs_measured: 2,
+            time_scale: 1.0,
+        }
     }
 
     #[test]

@@ -93,13 +93,14 @@ impl SimConnection {
         let pixels = table.pixels(job.set).ok_or_else(|| {
             WorkerError::Protocol(format!("job names set {} of {}", job.set, table.sets()))
         })?;
-        let frame = self.grid.cache.frame(&self.grid.key(&job.state), job.frame).ok_or_else(|| {
-            WorkerError::Render(format!(
-                "scene state version {} is not in the simulated grid's frame cache \
+        let frame =
+            self.grid.cache.frame(&self.grid.key(&job.state), job.frame).ok_or_else(|| {
+                WorkerError::Render(format!(
+                    "scene state version {} is not in the simulated grid's frame cache \
                  (the session showed a view that was not rendered beforehand)",
-                job.state.version
-            ))
-        })?;
+                    job.state.version
+                ))
+            })?;
         if frame.len() != job.state.resolution.pixels() {
             return Err(WorkerError::Render(format!(
                 "cached frames are {}×{}, the job's are {}×{}",

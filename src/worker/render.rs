@@ -110,7 +110,8 @@ impl RenderThread {
             let table = shared
                 .set_table(res, sets)
                 .map_err(|e| WorkerError::Protocol(format!("the master's sets: {e}")))?;
-            let seed = name.bytes().fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b)));
+            let seed =
+                name.bytes().fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b)));
             let conn = crate::simgrid::SimConnection::new(Arc::clone(grid), seed);
             return Ok(Self { inner: Inner::Simulated { conn, table, key, results } });
         }
