@@ -85,7 +85,7 @@ enum Inner {
         results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
     },
     Simulated {
-        conn: crate::simgrid::SimConnection,
+        conn: Box<crate::simgrid::SimConnection>,
         table: Arc<gridlight_actors::sets::SetTable>,
         key: ResultKey,
         results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
@@ -112,7 +112,7 @@ impl RenderThread {
                 .map_err(|e| WorkerError::Protocol(format!("the master's sets: {e}")))?;
             let seed =
                 name.bytes().fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b)));
-            let conn = crate::simgrid::SimConnection::new(Arc::clone(grid), seed);
+            let conn = Box::new(crate::simgrid::SimConnection::new(Arc::clone(grid), seed));
             return Ok(Self { inner: Inner::Simulated { conn, table, key, results } });
         }
         let inline = matches!(kind, RendererKind::Null { delay_ms: 0 });
