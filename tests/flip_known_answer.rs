@@ -3,8 +3,10 @@
 //! The fixtures in `tests/fixtures/flip/` are small 8-bit sRGB image pairs and the FLIP
 //! maps and means that `flip-evaluator` 1.7 (NVIDIA's Python package) computed for them
 //! at 67 pixels per degree; `scripts/flip_fixtures.py` made them. Tolerances: the mean
-//! within 1e-3; per pixel, every value within 0.02 and 99 % within 0.005 (the reference
-//! filters in float32 with its own kernel sizes at the borders).
+//! within 1e-3 and every pixel within 1e-3 (measured: means agree to 1e-6, pixels to
+//! 1e-4; both filter in float32, in different orders). Until the borders were clamped as
+//! the reference clamps them (they were mirrored), means differed by up to 5e-3 and
+//! pixels by 0.09.
 
 use std::path::{Path, PathBuf};
 
@@ -13,9 +15,7 @@ use gridlight::tools::eval::flip::flip;
 use serde_json::Value;
 
 const MEAN_TOLERANCE: f64 = 1e-3;
-const PIXEL_MAX: f64 = 0.02;
-const PIXEL_TYPICAL: f64 = 0.005;
-const TYPICAL_SHARE: f64 = 0.99;
+const PIXEL_MAX: f64 = 1e-3;
 
 fn dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/flip")

@@ -17,11 +17,18 @@ impl Plane {
 
     /// Convolves with `kx` along rows, then `ky` along columns (odd lengths, centred).
     pub fn separable(&self, kx: &[f32], ky: &[f32]) -> Plane {
-        let tmp = self.pass(kx, true);
-        tmp.pass(ky, false)
+        let tmp = self.pass(kx, true, mirror);
+        tmp.pass(ky, false, mirror)
     }
 
-    fn pass(&self, k: &[f32], horizontal: bool) -> Plane {
+    /// [`Plane::separable`] with the border pixel repeated outside (clamp to edge), as
+    /// NVIDIA's C++ FLIP (the `flip-evaluator` package) filters.
+    pub fn separable_clamped(&self, kx: &[f32], ky: &[f32]) -> Plane {
+        let clamp = |i: isize, n: isize| i.clamp(0, n - 1);
+        self.pass(kx, true, clamp).pass(ky, false, clamp)
+    }
+
+    fn pass(&self, k: &[f32], horizontal: bool, border: impl Fn(isize, isize) -> isize) -> Plane {
         let r = (k.len() / 2) as isize;
         let (w, h) = (self.width as isize, self.height as isize);
         let mut out = vec![0.0; self.data.len()];
@@ -32,7 +39,7 @@ impl Plane {
                     // Convolution flips the kernel: tap t reads offset r − t.
                     let o = r - t as isize;
                     let (xx, yy) =
-                        if horizontal { (mirror(x + o, w), y) } else { (x, mirror(y + o, h)) };
+                        if horizontal { (border(x + o, w), y) } else { (x, border(y + o, h)) };
                     acc += kv * self.data[(yy * w + xx) as usize];
                 }
                 out[(y * w + x) as usize] = acc;

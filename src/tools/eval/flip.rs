@@ -6,7 +6,8 @@
 //! back to linear RGB (clamped), CIELab with the Hunt adjustment, HyAB distance,
 //! compressed and redistributed. Feature pipeline: edge and point detectors (first and
 //! second Gaussian derivatives) on the achromatic channel. The two combine as
-//! ΔE = ΔE_c^(1 − ΔE_f). No FLIP crate in pure Rust exists (`nv-flip` binds the C++
+//! ΔE = ΔE_c^(1 − ΔE_f). Filters repeat the border pixel outside the image, as NVIDIA's
+//! C++ FLIP does (`tests/flip_known_answer.rs` checks us against it). No FLIP crate in pure Rust exists (`nv-flip` binds the C++
 //! library), hence this implementation.
 
 use glam::{Mat3, Vec3};
@@ -108,7 +109,7 @@ fn csf_filter(plane: &Plane, terms: &[(f32, f32)], ppd: f32, radius: usize) -> P
     let total: f32 = kernels.iter().map(|k| k.iter().sum::<f32>().powi(2)).sum();
     let mut out = vec![0.0; plane.data.len()];
     for k in &kernels {
-        let filtered = plane.separable(k, k);
+        let filtered = plane.separable_clamped(k, k);
         for (o, v) in out.iter_mut().zip(filtered.data) {
             *o += v / total;
         }
@@ -145,8 +146,8 @@ fn feature_kernels(ppd: f32, point: bool) -> (Vec<f32>, Vec<f32>) {
 
 fn feature_magnitude(y: &Plane, ppd: f32, point: bool) -> Vec<f32> {
     let (d, g) = feature_kernels(ppd, point);
-    let fx = y.separable(&d, &g);
-    let fy = y.separable(&g, &d);
+    let fx = y.separable_clamped(&d, &g);
+    let fy = y.separable_clamped(&g, &d);
     fx.data.iter().zip(&fy.data).map(|(a, b)| (a * a + b * b).sqrt()).collect()
 }
 
