@@ -53,13 +53,10 @@ fn our_flip_matches_nvidias_on_every_fixture() {
         let diffs: Vec<f64> =
             got.map.iter().zip(&map).map(|(a, b)| (f64::from(*a) - b).abs()).collect();
         let worst = diffs.iter().copied().fold(0.0, f64::max);
-        let typical =
-            diffs.iter().filter(|d| **d <= PIXEL_TYPICAL).count() as f64 / diffs.len() as f64;
         println!(
-            "{name}: mean ours {:.6} NVIDIA {mean:.6} (Δ {:.2e}); per pixel worst Δ {worst:.4}, {:.1} % within {PIXEL_TYPICAL}",
+            "{name}: mean ours {:.6} NVIDIA {mean:.6} (Δ {:.2e}); per pixel worst Δ {worst:.2e}",
             got.mean,
             (got.mean - mean).abs(),
-            typical * 100.0
         );
         assert!(
             (got.mean - mean).abs() <= MEAN_TOLERANCE,
@@ -67,10 +64,5 @@ fn our_flip_matches_nvidias_on_every_fixture() {
             got.mean
         );
         assert!(worst <= PIXEL_MAX, "{name}: a pixel differs by {worst}");
-        assert!(
-            typical >= TYPICAL_SHARE,
-            "{name}: only {:.1} % of pixels within {PIXEL_TYPICAL}",
-            typical * 100.0
-        );
     }
 }
