@@ -25,10 +25,10 @@ use super::latest::Latest;
 use super::panel::PacingChoice;
 use super::picture::Picture;
 use super::status::{StatusView, WorkerRow};
-use super::{Composed, Session, UserEvent};
-use crate::compose::{Composer, SharedScene};
+use super::{ReadyFrame, Session, UserEvent};
+use crate::master::compose::{Composer, SharedScene};
+use crate::master::view::View;
 use crate::render;
-use crate::view::View;
 
 /// The view the window wants, shared with the sink (index into [`View::ALL`]).
 pub type SharedView = Arc<AtomicU8>;
@@ -37,7 +37,7 @@ pub type SharedView = Arc<AtomicU8>;
 pub struct WindowSink {
     composer: Composer,
     view: SharedView,
-    frames: Arc<Latest<Composed>>,
+    frames: Arc<Latest<ReadyFrame>>,
     proxy: EventLoopProxy<UserEvent>,
 }
 
@@ -45,20 +45,20 @@ impl WindowSink {
     pub fn new(
         composer: Composer,
         view: SharedView,
-        frames: Arc<Latest<Composed>>,
+        frames: Arc<Latest<ReadyFrame>>,
         proxy: EventLoopProxy<UserEvent>,
     ) -> Self {
         Self { composer, view, frames, proxy }
     }
 
-    fn compose(&mut self, frame: &ShownFrame) -> Result<Composed, SinkError> {
+    fn compose(&mut self, frame: &ShownFrame) -> Result<ReadyFrame, SinkError> {
         let view =
             View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
         let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.to_string()))?;
         let picture = Picture::from_pixels(c.width, c.height, &c.rgba)
             .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
         let status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
-        Ok(Composed { picture, linear: c.linear.map(Arc::new), status })
+        Ok(ReadyFrame { picture, linear: c.linear.map(Arc::new), status })
     }
 }
 

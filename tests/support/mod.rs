@@ -179,7 +179,7 @@ impl Master {
         let addr = eventually("the master's listening line", || {
             let out = proc.stdout.lock().unwrap().clone();
             out.lines()
-                .find_map(|l| l.strip_prefix(gridlight::master_cmd::LISTENING_PREFIX))
+                .find_map(|l| l.strip_prefix(gridlight::master::launch::LISTENING_PREFIX))
                 .map(|a| a.trim().parse::<SocketAddr>().expect("a socket address"))
         });
         Master { proc, addr, dir: dir.to_path_buf() }
