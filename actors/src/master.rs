@@ -178,6 +178,7 @@ pub fn start(
     let workers = Arc::new(WorkerTable::default());
     let (tx, rx) = std::sync::mpsc::channel();
     let (r, c, w) = (report.clone(), counters.clone(), workers.clone());
+    let (r_end, c_end) = (report.clone(), counters.clone());
     let thread = std::thread::Builder::new().name("gridlight-master".into()).spawn(move || {
         let system = System::new();
         let wired = system.block_on(async move {
@@ -189,10 +190,17 @@ pub fn start(
         });
         let ok = wired.is_ok();
         let _ = tx.send(wired.map(|a| (System::current(), a)));
-        if ok {
-            system.run()
-        } else {
-            Ok(())
+        if !ok {
+            return Ok(());
+        }
+        let ran = system.run();
+        // Escalation stops the system without the presenter's finish: whoever waits for
+        // the report (the headless master) must still see the end, and why.
+        let escalation = c_end.escalation.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        r_end.finish(escalation.clone());
+        match escalation {
+            Some(why) => Err(std::io::Error::other(why)),
+            None => ran,
         }
     })?;
     let (system, actors) = match rx.recv() {

@@ -88,6 +88,20 @@ pub struct Report {
     pub changed: Condvar,
 }
 
+impl Report {
+    /// Marks the run finished (keeping the first error) and wakes every waiter.
+    pub fn finish(&self, error: Option<String>) {
+        {
+            let mut r = self.state.lock().unwrap_or_else(|p| p.into_inner());
+            r.finished = true;
+            if r.error.is_none() {
+                r.error = error;
+            }
+        }
+        self.changed.notify_all();
+    }
+}
+
 #[derive(Debug, Default, Clone)]
 pub struct ReportState {
     pub shown: u64,
@@ -499,14 +513,7 @@ impl Presenter {
                 tracing::error!("frame sink thread panicked");
             }
         }
-        {
-            let mut r = self.report.state.lock().unwrap_or_else(|p| p.into_inner());
-            r.finished = true;
-            if error.is_some() {
-                r.error = error;
-            }
-        }
-        self.report.changed.notify_all();
+        self.report.finish(error);
         System::current().stop();
     }
 

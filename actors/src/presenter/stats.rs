@@ -46,6 +46,9 @@ pub struct Counters {
     pub connections_rejected: AtomicU64,
     /// Panics contained at an actor boundary.
     pub panics_contained: AtomicU64,
+    /// Why supervision gave up (an actor past the restart intensity), once it did: the
+    /// master thread puts it in the report when the actor system has stopped.
+    pub escalation: Mutex<Option<String>>,
     /// Connections ended on an error, by kind
     /// ([`RejectionKind::as_str`]); bounded: the kinds are fixed.
     pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
