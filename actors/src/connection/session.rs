@@ -589,7 +589,8 @@ mod tests {
     #[test]
     fn a_bad_result_is_rejected_with_its_kind() {
         let now = Instant::now();
-        let cases: [(fn(&Session, &ResultKey) -> WorkerMsg, RejectionKind); 4] = [
+        type Make = fn(&Session, &ResultKey) -> WorkerMsg;
+        let cases: [(Make, RejectionKind); 4] = [
             (|s, k| answer(s, k, 0, 9, 1), RejectionKind::SetRange),
             (|s, k| answer(s, k, 0, 0, 2), RejectionKind::StateVersion),
             (
