@@ -6,7 +6,7 @@
 //! scene state (`RenderScene::set_state`) when a job names a version it has not rendered
 //! with yet, derives the job's pixels from the set number (pixel indices never travel),
 //! renders them, packs the reflected radiance (not demodulated: the master divides by its
-//! own G-buffer's albedo, `crate::compose`) as RGB9E5 and tags the result with the
+//! own G-buffer's albedo, `crate::master::compose`) as RGB9E5 and tags the result with the
 //! connection's key (`gridlight_actors::integrity`).
 //!
 //! The thread lowers its own priority first (`priority`: `SCHED_IDLE` by default), so
