@@ -183,7 +183,7 @@ fn every_fault_of_the_list_is_survived_and_the_invariants_hold() {
         "freeze_worker",
         "panic_scheduler",
         "panic_assembler",
-        "panic_display",
+        "panic_presenter",
         "panic_scene_holder",
         "kill_connection",
         "panic_connection",

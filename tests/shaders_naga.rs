@@ -1,4 +1,4 @@
-//! Every WGSL file under `src/` (each beside the Rust that binds it) parses and validates
+//! Every WGSL file under `shaders/` (laid out like the Rust that binds it) parses and validates
 //! with naga (STYLE.md item 11), on every test run and without a GPU. Reconstruction
 //! passes are validated as they are compiled: prefixed with their `common.wgsl`.
 
@@ -30,7 +30,7 @@ fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) {
 #[test]
 fn every_wgsl_file_validates() {
     let mut files = Vec::new();
-    wgsl_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("src"), &mut files);
+    wgsl_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders"), &mut files);
     let common = gridlight::reconstruct::pass::COMMON_WGSL;
     let mut checked = 0;
     for path in &files {
@@ -52,7 +52,7 @@ fn every_wgsl_file_validates() {
 
 #[test]
 fn compiled_in_sources_are_the_files() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/reconstruct/pass");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/reconstruct");
     for (name, source) in gridlight::reconstruct::pass::WGSL {
         let on_disk = std::fs::read_to_string(dir.join(name)).expect("pass file exists");
         assert_eq!(on_disk, source, "{name}");

@@ -12,7 +12,7 @@ use crate::gpu::readback::Staging;
 use crate::gpu::GpuContext;
 
 /// The raster pass's WGSL: standalone, it declares its own bindings.
-pub const WGSL: &str = include_str!("raster.wgsl");
+pub const WGSL: &str = include_str!("../../shaders/gbuffer/raster.wgsl");
 
 pub(super) const TARGET: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 pub(super) const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;

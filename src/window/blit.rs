@@ -8,7 +8,7 @@ use super::layout::Rect;
 use super::picture::Picture;
 
 /// The blit shader's source, checked by naga in the tests.
-pub const SHADER: &str = include_str!("blit.wgsl");
+pub const SHADER: &str = include_str!("../../shaders/window/blit.wgsl");
 
 /// Texture, bind group and pipeline that show one picture.
 pub struct BlitPass {

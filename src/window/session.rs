@@ -380,17 +380,8 @@ mod tests {
         };
         let env = Environment { map: None, color: Vec3::ONE, intensity: 2.0, rotation_deg: 30.0 };
         let light = Light::Point { position: Vec3::Y, intensity: Vec3::splat(3.0) };
-        let state = SceneState {
-            version: 1,
-            seed: 0,
-            resolution: gridlight_actors::state::Resolution { width: 4, height: 4 },
-            camera,
-            objects: vec![],
-            materials: vec![],
-            lights: vec![light],
-            environment: None,
-            render: Default::default(),
-        };
+        let resolution = gridlight_actors::state::Resolution { width: 4, height: 4 };
+        let state = SceneState { lights: vec![light], ..SceneState::empty(resolution, camera) };
         let edits: Vec<(Duration, Edit)> = [
             SceneEdit::Camera(camera),
             SceneEdit::Environment(Some(env)),

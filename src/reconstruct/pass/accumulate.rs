@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use crate::gpu::compute::{Binding, ComputePass};
 
 /// WGSL: reads the samples and the previous sums, writes the new sums.
-pub const WGSL: &str = include_str!("accumulate.wgsl");
+pub const WGSL: &str = include_str!("../../../shaders/reconstruct/accumulate.wgsl");
 
 /// The GPU binding: the compiled pass with its bindings in `accumulate.wgsl`'s order.
 pub fn gpu_pass(device: &wgpu::Device) -> ComputePass {

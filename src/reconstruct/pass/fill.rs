@@ -18,7 +18,7 @@ use crate::reconstruct::planes::{Layout, Plane, PlaneRow, Planes3, View3};
 use crate::reconstruct::simd::{F32s, Isa, RowKernel, Vec3s, LANES};
 
 /// WGSL: reads the running sums and the G-buffer, writes the filled radiance.
-pub const WGSL: &str = include_str!("fill.wgsl");
+pub const WGSL: &str = include_str!("../../../shaders/reconstruct/fill.wgsl");
 
 /// The GPU binding: the compiled pass with its bindings in `fill.wgsl`'s order.
 pub fn gpu_pass(device: &wgpu::Device) -> ComputePass {

@@ -18,7 +18,7 @@ use crate::reconstruct::planes::{PlaneRow, Planes3, View3};
 use crate::reconstruct::simd::{store, F32s, Isa, RowKernel, Vec3s, LANES};
 
 /// WGSL: reads the blended radiance and the G-buffer, writes the filtered radiance.
-pub const WGSL: &str = include_str!("gaussian.wgsl");
+pub const WGSL: &str = include_str!("../../../shaders/reconstruct/gaussian.wgsl");
 
 /// The GPU binding: the compiled pass with its bindings in `gaussian.wgsl`'s order.
 pub fn gpu_pass(device: &wgpu::Device) -> ComputePass {

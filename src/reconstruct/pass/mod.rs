@@ -1,5 +1,6 @@
-//! The reconstruction passes (paper §4.3.1), one module per pass: its CPU kernel, its WGSL
-//! (next to it, compiled in) and its GPU binding (the pass's bindings, in WGSL order).
+//! The reconstruction passes (paper §4.3.1), one module per pass: its CPU kernel and its GPU
+//! binding (the pass's bindings, in WGSL order); its WGSL is `shaders/reconstruct/<pass>.wgsl`,
+//! compiled in (every shader lives under the top-level `shaders/`, laid out like this code).
 //!
 //! Per shown frame, in this order (the only numbering of the steps; the WGSL and the
 //! kernels name their pass instead):
@@ -39,7 +40,7 @@ pub use temporal::{temporal, PastFrame};
 
 /// Shared WGSL: the `Params` uniform and D. WGSL has no `#include`: every pass is prefixed
 /// with it ([`with_common`]).
-pub const COMMON_WGSL: &str = include_str!("common.wgsl");
+pub const COMMON_WGSL: &str = include_str!("../../../shaders/reconstruct/common.wgsl");
 
 /// Every pass's WGSL by file name, in pipeline order (for the naga validation test).
 pub const WGSL: [(&str, &str); 5] = [

@@ -12,7 +12,7 @@ use crate::reconstruct::tonemap::{exposure_scale, to_rgba8_lanes};
 use super::PassConsts;
 
 /// WGSL: writes the linear colour and the display image.
-pub const WGSL: &str = include_str!("remodulate.wgsl");
+pub const WGSL: &str = include_str!("../../../shaders/reconstruct/remodulate.wgsl");
 
 /// The GPU binding: the compiled pass with its bindings in `remodulate.wgsl`'s order.
 pub fn gpu_pass(device: &wgpu::Device) -> ComputePass {

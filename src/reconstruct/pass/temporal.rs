@@ -12,7 +12,7 @@ use crate::reconstruct::simd::{F32s, Isa, RowKernel, Vec3s, LANES};
 use super::PassConsts;
 
 /// WGSL: past frames are texture-array layers.
-pub const WGSL: &str = include_str!("temporal.wgsl");
+pub const WGSL: &str = include_str!("../../../shaders/reconstruct/temporal.wgsl");
 
 /// The GPU binding: the compiled pass with its bindings in `temporal.wgsl`'s order.
 pub fn gpu_pass(device: &wgpu::Device) -> ComputePass {

@@ -18,7 +18,7 @@ use gridlight_actors::asset_store::AssetStore;
 use gridlight_actors::master::{self, Heuristic, MasterConfig, Pacing, ShownFrame, SinkError};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::sink::FrameSink;
-use gridlight_actors::state::{Camera, RenderSettings, Resolution, SceneState};
+use gridlight_actors::state::{Camera, Resolution, SceneState};
 use gridlight_actors::stats::Counters;
 use serde::Serialize;
 
@@ -252,22 +252,5 @@ impl FrameSink for CountingSink {
 
 /// An empty 640×480 scene: the null renderer never looks at it (also a base for tests).
 pub fn bench_state() -> SceneState {
-    SceneState {
-        version: 1,
-        seed: 0,
-        resolution: RESOLUTION,
-        camera: Camera {
-            position: Vec3::new(0.0, 0.0, 4.0),
-            look_at: Vec3::ZERO,
-            up: Vec3::Y,
-            vfov_deg: 40.0,
-            aperture: 0.0,
-            focus_distance: 4.0,
-        },
-        objects: Vec::new(),
-        materials: Vec::new(),
-        lights: Vec::new(),
-        environment: None,
-        render: RenderSettings::default(),
-    }
+    SceneState::empty(RESOLUTION, Camera::pinhole(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 40.0))
 }

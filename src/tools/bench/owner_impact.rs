@@ -137,7 +137,7 @@ fn start_master(opts: &OwnerImpactOptions) -> anyhow::Result<MasterHandle> {
         script: None,
         frames: None,
         keep_stale_jobs: false,
-        sink_in_flight: gridlight_actors::display::DEFAULT_SINK_IN_FLIGHT,
+        sink_in_flight: gridlight_actors::presenter::DEFAULT_SINK_IN_FLIGHT,
         headless: Default::default(),
     };
     let prepared = launch::prepare(&options)?;

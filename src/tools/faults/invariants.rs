@@ -226,31 +226,15 @@ impl FrameSink for CheckingSink {
 mod tests {
     use super::*;
     use gridlight_actors::master::FrameStats;
-    use gridlight_actors::state::{Camera, RenderSettings, Resolution, SceneState};
+    use gridlight_actors::state::{Camera, Resolution, SceneState};
 
     fn limits() -> Limits {
         Limits { sets: 4, max_gap: Duration::from_millis(100) }
     }
 
     fn shown(frame: FrameNo, values: Vec<Vec3>, jobs_back: u32) -> ShownFrame {
-        let state = SceneState {
-            version: 1,
-            seed: 0,
-            resolution: Resolution { width: values.len() as u32, height: 1 },
-            camera: Camera {
-                position: Vec3::Z,
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                vfov_deg: 40.0,
-                aperture: 0.0,
-                focus_distance: 1.0,
-            },
-            objects: vec![],
-            materials: vec![],
-            lights: vec![],
-            environment: None,
-            render: RenderSettings::default(),
-        };
+        let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 40.0);
+        let state = SceneState::empty(Resolution { width: values.len() as u32, height: 1 }, camera);
         ShownFrame {
             frame,
             state: Arc::new(state),

@@ -132,7 +132,7 @@ fn random_fault(rng: &mut StdRng, n: usize) -> Option<Fault> {
         3 => Fault::SpawnWorker,
         4 => Fault::PanicActor(ActorKind::Scheduler),
         5 => Fault::PanicActor(ActorKind::Assembler),
-        6 => Fault::PanicActor(ActorKind::Display),
+        6 => Fault::PanicActor(ActorKind::Presenter),
         7 => Fault::PanicActor(ActorKind::SceneHolder),
         8 => Fault::KillConnection(rng.gen_range(0..64)),
         9 => Fault::PanicConnection(rng.gen_range(0..64)),

@@ -38,7 +38,7 @@ impl Fault {
             [
                 ActorKind::Scheduler,
                 ActorKind::Assembler,
-                ActorKind::Display,
+                ActorKind::Presenter,
                 ActorKind::SceneHolder,
             ]
             .map(Fault::PanicActor),
@@ -117,7 +117,7 @@ impl Harness {
             self.fault(match kind {
                 ActorKind::Scheduler => "panic_scheduler",
                 ActorKind::Assembler => "panic_assembler",
-                ActorKind::Display => "panic_display",
+                ActorKind::Presenter => "panic_presenter",
                 ActorKind::SceneHolder => "panic_scene_holder",
             });
         }

@@ -15,14 +15,11 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use glam::{Quat, Vec3};
+use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
 use gridlight_actors::master::{start, MasterConfig, MasterHandle};
 use gridlight_actors::protocol::{Partition, SetsConfig};
-use gridlight_actors::state::{
-    Camera, Geometry, Material, MaterialKind, Object, RenderSettings, Resolution, SceneState,
-    Transform,
-};
+use gridlight_actors::state::{Camera, Geometry, Material, Object, Resolution, SceneState};
 use gridlight_actors::stats::Counters;
 use thiserror::Error;
 
@@ -326,40 +323,9 @@ fn add_counters(t: &mut Totals, c: &Counters) {
 
 /// A one-cube scene; the null renderer ignores it, the master only needs its size.
 pub fn null_scene(width: u32, height: u32) -> SceneState {
-    SceneState {
-        version: 1,
-        seed: 1,
-        resolution: Resolution { width, height },
-        camera: Camera {
-            position: Vec3::new(0.0, 0.0, 4.0),
-            look_at: Vec3::ZERO,
-            up: Vec3::Y,
-            vfov_deg: 40.0,
-            aperture: 0.0,
-            focus_distance: 1.0,
-        },
-        objects: vec![Object {
-            name: "cube".into(),
-            geometry: Geometry::Cube,
-            transform: Transform {
-                translation: Vec3::ZERO,
-                rotation: Quat::IDENTITY,
-                scale: Vec3::ONE,
-            },
-            materials: vec![0],
-            visible: true,
-        }],
-        materials: vec![Material {
-            name: "grey".into(),
-            kind: MaterialKind::Diffuse,
-            base_color: Vec3::splat(0.5),
-            base_color_texture: None,
-            roughness: 1.0,
-            ior: 1.5,
-            emission: Vec3::ZERO,
-        }],
-        lights: vec![],
-        environment: None,
-        render: RenderSettings::default(),
-    }
+    let camera = Camera::pinhole(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 40.0);
+    SceneState { seed: 1, ..SceneState::empty(Resolution { width, height }, camera) }.with_object(
+        Object::new("cube", Geometry::Cube),
+        Material::diffuse("grey", Vec3::splat(0.5)),
+    )
 }
