@@ -18,6 +18,7 @@
 //! switches back to the final view.
 
 use std::sync::{Arc, RwLock};
+use std::time::Instant;
 
 use glam::Vec3;
 use gridlight_actors::sink::ShownFrame;
@@ -57,6 +58,20 @@ pub struct Composed {
     pub rgba: Vec<[u8; 4]>,
     /// Final linear colour (albedo · radiance + emission), only for the final view.
     pub linear: Option<Vec<Vec3>>,
+    /// Where the compose time went (written to `stats.jsonl`).
+    pub timings: ComposeTimings,
+}
+
+/// Milliseconds each step of one compose took: what the edit-to-display latency spends on
+/// the master after the display decided to show a frame.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct ComposeTimings {
+    /// Getting the frame's G-buffer (0 when it was ready: cached or prepared).
+    pub gbuffer_ms: f64,
+    /// Demodulation and reconstruction.
+    pub reconstruct_ms: f64,
+    /// The whole compose, the chosen view included.
+    pub compose_ms: f64,
 }
 
 /// G-buffer, reconstruction and views for a run's shown frames.
@@ -106,10 +121,14 @@ impl Composer {
 
     /// Reconstructs `frame` and makes `view` of it.
     pub fn compose(&mut self, frame: &ShownFrame, view: View) -> Result<Composed, ComposeError> {
+        let started = Instant::now();
+        let ms = |from: Instant| from.elapsed().as_secs_f64() * 1e3;
         let res = frame.state.resolution;
         let (width, height) = (res.width, res.height);
         let g = self.gbuffers.write().unwrap_or_else(|p| p.into_inner()).get(&frame.state)?;
         let g = self.for_accumulation(g, frame.state.version);
+        let mut timings = ComposeTimings { gbuffer_ms: ms(started), ..Default::default() };
+        let reconstructing = Instant::now();
         if frame.current.len() != g.albedo.len() {
             return Err(ComposeError::Size { width, height });
         }
@@ -126,8 +145,11 @@ impl Composer {
             gbuffer: &g,
         };
         let out = reconstructor.reconstruct(&inputs)?;
+        timings.reconstruct_ms = ms(reconstructing);
         if view == View::Final {
-            return Ok(Composed { width, height, rgba: out.display, linear: Some(out.colour) });
+            timings.compose_ms = ms(started);
+            let linear = Some(out.colour);
+            return Ok(Composed { width, height, rgba: out.display, linear, timings });
         }
         let owner = if view == View::Workers {
             frame.owners.per_pixel(frame.current.len())
@@ -148,7 +170,8 @@ impl Composer {
         let rgba =
             view::diagnostic(view, &planes, |c| crate::reconstruct::tonemap::to_rgba8(c, exposure))
                 .ok_or(ComposeError::Size { width, height })?;
-        Ok(Composed { width, height, rgba, linear: None })
+        timings.compose_ms = ms(started);
+        Ok(Composed { width, height, rgba, linear: None, timings })
     }
 }
 

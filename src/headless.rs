@@ -14,7 +14,7 @@ use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
 use serde::Serialize;
 use tracing::info;
 
-use crate::compose::Composer;
+use crate::compose::{ComposeTimings, Composer};
 use crate::view::View;
 
 /// What the sink writes, and where.
@@ -59,6 +59,19 @@ pub struct Summary {
     pub seconds: f64,
 }
 
+/// One line of the stats file: the display's statistics of a frame and where its compose
+/// time went.
+#[derive(Serialize)]
+struct StatsLine<'a> {
+    #[serde(flatten)]
+    frame: &'a gridlight_actors::stats::FrameStats,
+    /// Each edit's latency up to the display's decision to show this frame (the rest of
+    /// `edit_latency_ms` is the compose).
+    edit_to_decision_ms: Vec<f64>,
+    #[serde(flatten)]
+    compose: ComposeTimings,
+}
+
 /// The headless [`FrameSink`].
 pub struct HeadlessSink {
     composer: Composer,
@@ -97,9 +110,13 @@ impl HeadlessSink {
     }
 
     fn write_frame(&mut self, frame: &mut ShownFrame) -> Result<(), String> {
+        // The display stamped the latencies when it decided to show the frame.
+        let edit_to_decision_ms = frame.stats.edit_latency_ms.clone();
         let composed =
             self.composer.compose(frame, self.options.view).map_err(|e| e.to_string())?;
-        // Composed is what the headless master shows: the edit latency ends here.
+        // Composed is what the headless master shows (its picture exists; writing it to a
+        // file is not showing it): the edit latency ends here, as the window's ends when
+        // the picture is presented.
         frame.stats.stamp_edit_latency(std::time::Instant::now());
         if let Some(dir) = &self.options.out_dir {
             let (w, h) = (composed.width, composed.height);
@@ -117,7 +134,12 @@ impl HeadlessSink {
             }
         }
         if let Some(stats) = &mut self.stats {
-            let line = serde_json::to_string(&frame.stats).map_err(|e| e.to_string())?;
+            let line = StatsLine {
+                frame: &frame.stats,
+                edit_to_decision_ms,
+                compose: composed.timings,
+            };
+            let line = serde_json::to_string(&line).map_err(|e| e.to_string())?;
             writeln!(stats, "{line}")
                 .and_then(|()| stats.flush())
                 .map_err(|e| format!("stats file: {e}"))?;
