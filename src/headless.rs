@@ -56,6 +56,10 @@ pub struct Summary {
     pub paused_by_reason: std::collections::BTreeMap<String, u64>,
     pub bytes_in: u64,
     pub bytes_out: u64,
+    /// Queued jobs of outdated scene states discarded (never handed out).
+    pub jobs_discarded_stale: u64,
+    /// Held jobs of outdated scene states that workers dropped unrendered.
+    pub jobs_superseded: u64,
     pub seconds: f64,
 }
 
@@ -134,11 +138,8 @@ impl HeadlessSink {
             }
         }
         if let Some(stats) = &mut self.stats {
-            let line = StatsLine {
-                frame: &frame.stats,
-                edit_to_decision_ms,
-                compose: composed.timings,
-            };
+            let line =
+                StatsLine { frame: &frame.stats, edit_to_decision_ms, compose: composed.timings };
             let line = serde_json::to_string(&line).map_err(|e| e.to_string())?;
             writeln!(stats, "{line}")
                 .and_then(|()| stats.flush())
@@ -163,6 +164,8 @@ impl HeadlessSink {
         }
         sum.bytes_in = s.bytes_in;
         sum.bytes_out = s.bytes_out;
+        sum.jobs_discarded_stale = s.jobs_discarded_stale;
+        sum.jobs_superseded = s.jobs_superseded;
         self.q_sum += s.q;
         self.wait_sum += s.wait_ms;
         sum.mean_q = self.q_sum / sum.frames_shown as f64;

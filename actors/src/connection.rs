@@ -320,6 +320,9 @@ impl Connection {
             }
             (Phase::Work { .. }, WorkerMsg::Resumed) => self.resume(ctx),
             (Phase::Work { .. }, WorkerMsg::Ready { credits }) => self.grant(credits, ctx),
+            (Phase::Work { .. }, WorkerMsg::Superseded { frame, set }) => {
+                self.superseded(frame, set)
+            }
             (Phase::Work { key }, WorkerMsg::Result(result)) => {
                 // Checked before anything else reads the result: a corrupted frame or
                 // set number must not be mistaken for a stale or foreign result.
@@ -370,6 +373,16 @@ impl Connection {
         self.counters.paused_workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
         Counters::add(&self.counters.workers, 1);
         self.counters.workers_table.resumed(self.id);
+    }
+
+    /// The worker dropped a held job unrendered (a newer state's job came first): it is
+    /// lost, and its slot is free for the `Ready` that follows. A job it does not hold
+    /// (lost already, e.g. by a pause) changes nothing.
+    fn superseded(&mut self, frame: FrameNo, set: SetNo) {
+        if self.held.remove(&(frame, set)).is_some() {
+            Counters::add(&self.counters.jobs_superseded, 1);
+            tracing::debug!(conn = self.id, frame, set, "held job superseded");
+        }
     }
 
     /// Passes new credits on to the scheduler, never letting the worker hold more than k.
@@ -539,6 +552,7 @@ fn kind(msg: &WorkerMsg) -> &'static str {
         WorkerMsg::Heartbeat => "Heartbeat",
         WorkerMsg::Paused { .. } => "Paused",
         WorkerMsg::Resumed => "Resumed",
+        WorkerMsg::Superseded { .. } => "Superseded",
     }
 }
 

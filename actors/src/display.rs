@@ -414,6 +414,8 @@ impl Display {
             results_used: used,
             results_returned: accepted + late,
             useful_fraction: useful_fraction(used, accepted, late),
+            jobs_discarded_stale: Counters::get(&c.jobs_discarded_stale),
+            jobs_superseded: Counters::get(&c.jobs_superseded),
         };
         stats.stamp_edit_latency(Instant::now());
         let frame = PackedShownFrame {
