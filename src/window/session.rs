@@ -65,7 +65,14 @@ impl WindowSink {
 impl FrameSink for WindowSink {
     fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
         let composed = self.compose(&frame)?;
-        if !self.frames.put(composed) || self.proxy.send_event(UserEvent::FrameReady).is_err() {
+        // A frame the window never draws hands the edits it was the first to show on to
+        // the newer one (whose state includes them): their latency ends when that is drawn.
+        let carry = |old: Composed, new: &mut Composed| {
+            new.status.edits_at.splice(0..0, old.status.edits_at).for_each(drop);
+        };
+        if !self.frames.put_merging(composed, carry)
+            || self.proxy.send_event(UserEvent::FrameReady).is_err()
+        {
             return Err(SinkError::Closed);
         }
         Ok(())
