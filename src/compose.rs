@@ -21,12 +21,13 @@ use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use glam::Vec3;
-use gridlight_actors::sink::ShownFrame;
+use gridlight_actors::sink::{Preparer, ShownFrame};
 use gridlight_actors::state::{SceneState, StateVersion};
 use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::assets::Assets;
+use crate::gbuffer_ahead::GBufferAhead;
 use crate::reconstruct::emission::area_mean_emission;
 use crate::reconstruct::gbuffer::{GBuffer, GBufferError, GBufferSource};
 use crate::reconstruct::{
@@ -47,6 +48,8 @@ pub enum ComposeError {
     Reconstruct(#[from] ReconstructError),
     #[error("the frame's planes do not match its {width}×{height} resolution")]
     Size { width: u32, height: u32 },
+    #[error("cannot start the G-buffer thread: {0}")]
+    Thread(std::io::Error),
 }
 
 /// One composed frame.
@@ -76,7 +79,12 @@ pub struct ComposeTimings {
 
 /// G-buffer, reconstruction and views for a run's shown frames.
 pub struct Composer {
+    assets: Arc<Assets>,
     gbuffers: SharedScene,
+    /// New states' G-buffers computed ahead, once [`Composer::preparer`] was asked for.
+    ahead: Option<GBufferAhead>,
+    /// Whether a frame sink asks for [`Composer::preparer`] (`--gbuffer-ahead`).
+    ahead_for_sink: bool,
     params: ReconstructParams,
     backend: Backend,
     reconstructor: Option<Reconstructor>,
@@ -97,9 +105,12 @@ impl Composer {
         backend: Backend,
     ) -> Result<Self, ComposeError> {
         params.validate()?;
-        let source = GBufferSource::new(assets, state, backend)?;
+        let source = GBufferSource::new(Arc::clone(&assets), state, backend)?;
         Ok(Self {
+            assets,
             gbuffers: Arc::new(RwLock::new(source)),
+            ahead: None,
+            ahead_for_sink: false,
             params,
             backend,
             reconstructor: None,
@@ -125,7 +136,14 @@ impl Composer {
         let ms = |from: Instant| from.elapsed().as_secs_f64() * 1e3;
         let res = frame.state.resolution;
         let (width, height) = (res.width, res.height);
-        let g = self.gbuffers.write().unwrap_or_else(|p| p.into_inner()).get(&frame.state)?;
+        let ready = self.ahead.as_ref().and_then(|a| a.take(frame.state.version));
+        let g = {
+            let mut source = self.gbuffers.write().unwrap_or_else(|p| p.into_inner());
+            match ready {
+                Some(g) => source.adopt(&frame.state, g)?,
+                None => source.get(&frame.state)?,
+            }
+        };
         let g = self.for_accumulation(g, frame.state.version);
         let mut timings = ComposeTimings { gbuffer_ms: ms(started), ..Default::default() };
         let reconstructing = Instant::now();
@@ -176,6 +194,37 @@ impl Composer {
 }
 
 impl Composer {
+    /// Computes the G-buffers of new scene states ahead from now on, on a thread of its
+    /// own with a G-buffer source of its own (`crate::gbuffer_ahead`): the master's
+    /// display tells the returned preparer each new state as soon as the scene changes.
+    pub fn preparer(&mut self) -> Result<Preparer, ComposeError> {
+        let current =
+            self.gbuffers.read().unwrap_or_else(|p| p.into_inner()).scene().state().clone();
+        let source = GBufferSource::new(Arc::clone(&self.assets), &current, self.backend)?;
+        let ahead = GBufferAhead::spawn(source).map_err(ComposeError::Thread)?;
+        let handle = ahead.handle();
+        self.ahead = Some(ahead);
+        Ok(Box::new(move |state| handle.want(state)))
+    }
+
+    /// Whether the frame sinks compute G-buffers ahead ([`Composer::sink_preparer`]).
+    pub fn with_gbuffer_ahead(mut self, on: bool) -> Self {
+        self.ahead_for_sink = on;
+        self
+    }
+
+    /// [`Composer::preparer`] for a frame sink, when asked for (`with_gbuffer_ahead`);
+    /// without it, or when the thread cannot start, every G-buffer is computed when its
+    /// frame is composed.
+    pub fn sink_preparer(&mut self) -> Option<Preparer> {
+        if !self.ahead_for_sink {
+            return None;
+        }
+        self.preparer()
+            .map_err(|e| tracing::warn!(cause = %e, "G-buffers are not computed ahead"))
+            .ok()
+    }
+
     /// From the second frame of a scene state on (accumulation, which converges), the
     /// G-buffer with each pixel's directly seen emission averaged over its area
     /// (`reconstruct::emission`), made once per state; the first frame of a state (while

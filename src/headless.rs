@@ -10,7 +10,7 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
+use gridlight_actors::sink::{FrameSink, Preparer, ShownFrame, SinkError};
 use serde::Serialize;
 use tracing::info;
 
@@ -189,6 +189,10 @@ impl FrameSink for HeadlessSink {
             );
         }
         self.write_frame(&mut frame).map_err(SinkError::Other)
+    }
+
+    fn preparer(&mut self) -> Option<Preparer> {
+        self.composer.sink_preparer()
     }
 
     fn finish(&mut self) {

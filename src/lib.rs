@@ -31,6 +31,7 @@ pub mod cli;
 pub mod compose;
 pub mod eval;
 pub mod faults;
+pub mod gbuffer_ahead;
 pub mod gpu;
 pub mod headless;
 pub mod image_io;

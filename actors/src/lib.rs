@@ -34,6 +34,7 @@ pub mod integrity;
 pub mod job_queue;
 pub mod listener;
 pub mod master;
+pub mod new_view;
 pub mod packed_frame;
 pub mod packing;
 pub mod protocol;

@@ -115,10 +115,12 @@ pub struct FramesAbandoned {
 /// queued jobs were discarded, so only results already held by workers can still come.
 /// The display shows such a frame at once with what it has (or skips it when empty)
 /// instead of waiting for them.
-#[derive(Message, Debug, Clone, Copy)]
+#[derive(Message, Debug, Clone)]
 #[rtype(result = "()")]
 pub struct FramesOutdated {
     pub before: FrameNo,
+    /// The new state, which the frames from `before` on have.
+    pub state: Arc<SceneState>,
 }
 
 /// The job queue and the workers waiting for jobs.
@@ -193,7 +195,8 @@ impl Handler<StateChanged> for Scheduler {
             let discarded = s.queue.discard_outdated();
             Counters::add(&s.counters.jobs_discarded_stale, discarded as u64);
             // Every frame scheduled so far is of an older version.
-            s.links.outdated_to.do_send(FramesOutdated { before: s.queue.next_frame() });
+            let (before, state) = (s.queue.next_frame(), Arc::clone(s.queue.state()));
+            s.links.outdated_to.do_send(FramesOutdated { before, state });
             tracing::debug!(discarded, "queued jobs of an outdated state discarded");
             s.dispatch();
         });

@@ -255,6 +255,24 @@ impl GBufferSource {
         self.fallback.as_deref()
     }
 
+    /// Makes `g`, `state`'s G-buffer computed elsewhere (`crate::gbuffer_ahead`), the
+    /// current one, and the render scene `state`'s, as [`Self::get`] would have.
+    pub fn adopt(
+        &mut self,
+        state: &SceneState,
+        g: Arc<GBuffer>,
+    ) -> Result<Arc<GBuffer>, GBufferError> {
+        match &mut self.engine {
+            Engine::Gpu(gpu) => gpu.set_state(state)?,
+            Engine::Cpu(scene) if scene.state().version != state.version => {
+                scene.set_state(state)?
+            }
+            Engine::Cpu(_) => {}
+        }
+        self.current = Some((state.version, Arc::clone(&g)));
+        Ok(g)
+    }
+
     /// The G-buffer of `state`, computed only when its version is new.
     pub fn get(&mut self, state: &SceneState) -> Result<Arc<GBuffer>, GBufferError> {
         if let Some((version, g)) = &self.current {

@@ -15,7 +15,7 @@ use std::time::Duration;
 use gridlight_actors::edit::Edit;
 use gridlight_actors::edit::{CameraEdit, EnvironmentEdit, MaterialEdit, ObjectEdit};
 use gridlight_actors::master::{MasterHandle, MasterReport};
-use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
+use gridlight_actors::sink::{FrameSink, Preparer, ShownFrame, SinkError};
 use gridlight_actors::state::SceneState;
 use serde::Serialize;
 use winit::event_loop::EventLoopProxy;
@@ -76,6 +76,10 @@ impl FrameSink for WindowSink {
             return Err(SinkError::Closed);
         }
         Ok(())
+    }
+
+    fn preparer(&mut self) -> Option<Preparer> {
+        self.composer.sink_preparer()
     }
 
     fn finish(&mut self) {
