@@ -8,41 +8,36 @@
 //! - [`image_io`]: tonemapping and writing PNG/EXR images.
 //! - [`cli`]: the command line (clap), one module per subcommand.
 //! - [`children`]: child processes killed with their parent (the demo's workers).
-//! - [`headless`]: the headless frame sink (G-buffer, PNG frames, statistics).
-//! - [`master_cmd`]: running a master from a scene file (`master` and `demo` commands).
+//! - [`master`]: the master's glue: running it from a scene, composing shown frames
+//!   (G-buffer, reconstruction, views), the headless sink.
 //! - [`signals`]: Ctrl-C and SIGTERM as a callback (headless master and window).
+//! - [`testing`]: how a test that cannot run here says so (and fails under CI).
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
-//! - [`reconstruct`]: G-buffer and spatio-temporal reconstruction, CPU reference.
-//! - [`eval`]: evaluation of reconstruction (paper Figures 3, 8, 9) and image metrics (FLIP, SSIM, RMSE).
-//! - [`faults`]: fault injection: TCP proxy, invariant checks, worker harness, RSS.
-//! - [`lan`]: separate network hosts on one machine (namespaces, bridge, rate-limited links).
-//! - [`gpu`]: wgpu context and the reconstruction compute passes (WGSL in `shaders/`).
+//! - [`gbuffer`]: the G-buffer (CPU primary rays or the wgpu raster pass, its WGSL beside it).
+//! - [`reconstruct`]: spatio-temporal reconstruction, one module per pass (CPU kernel,
+//!   WGSL, GPU binding), the CPU and GPU pipelines.
+//! - [`gpu`]: device plumbing only (context, backend choice, compute passes, readback).
 //! - [`render`]: the path tracer (BVHs, materials, lights, the per-pixel kernel).
-//! - [`bench`]: benchmarks behind `gridlight bench` (kernel and master throughput).
+//! - [`tools`]: benchmarks, evaluation, fault injection and the LAN testbed.
 //! - [`window`]: the interactive window (winit + wgpu + egui) with live scene editing.
 //!
 //! The master's runtime (wire protocol, scene-state values, actors) lives in the
 //! `gridlight-actors` crate, which this crate depends on and never the reverse.
 
 pub mod assets;
-pub mod bench;
 pub mod children;
 pub mod cli;
-pub mod compose;
-pub mod eval;
-pub mod faults;
-pub mod gbuffer_ahead;
+pub mod gbuffer;
 pub mod gpu;
-pub mod headless;
 pub mod image_io;
-pub mod lan;
-pub mod master_cmd;
+pub mod master;
 pub mod reconstruct;
 pub mod render;
 pub mod scene;
 pub mod shapes;
 pub mod signals;
-pub mod view;
+pub mod testing;
+pub mod tools;
 pub mod window;
 pub mod worker;
 

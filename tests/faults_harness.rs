@@ -10,9 +10,9 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use gridlight::faults::curve::live_workers;
-use gridlight::faults::harness::{Fault, Harness, HarnessConfig};
-use gridlight::faults::proxy::Mode;
+use gridlight::tools::faults::curve::live_workers;
+use gridlight::tools::faults::harness::{Fault, Harness, HarnessConfig};
+use gridlight::tools::faults::proxy::LinkMode;
 use gridlight_actors::stats::Counters;
 
 const WORKERS: usize = 3;
@@ -98,7 +98,7 @@ fn every_fault_of_the_list_is_survived_and_the_invariants_hold() {
                     "the connection's panic was not contained"
                 );
             }
-            Fault::Link(Mode::Truncate | Mode::Corrupt) => {
+            Fault::Link(LinkMode::Truncate | LinkMode::Corrupt) => {
                 // The broken streams ended those connections, counted by kind. (Dropped
                 // whole chunks may leave a stream that still decodes, and a cut is a clean
                 // close: the worker just left; both must reconnect, checked below.)
@@ -157,7 +157,7 @@ fn every_fault_of_the_list_is_survived_and_the_invariants_hold() {
         "freeze_worker",
         "panic_scheduler",
         "panic_assembler",
-        "panic_display",
+        "panic_presenter",
         "panic_scene_holder",
         "kill_connection",
         "panic_connection",

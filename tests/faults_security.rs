@@ -13,8 +13,8 @@ use std::thread;
 use std::time::Duration;
 
 use common::{scene, Peer};
-use gridlight::faults::invariants::{lock, Checker, CheckingSink, Limits};
-use gridlight::faults::proxy::Proxy;
+use gridlight::tools::faults::invariants::{lock, Checker, CheckingSink, Limits};
+use gridlight::tools::faults::proxy::Proxy;
 use gridlight::worker::render::null_radiance;
 use gridlight::worker::{run_until, Priority, RendererKind, WhenIdle, WorkerConfig};
 use gridlight_actors::asset_store::AssetStore;

@@ -25,8 +25,8 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec2, Vec3};
 use gridlight::assets::{Assets, Mesh, Texture};
-use gridlight::gpu::{GpuContext, GpuGBuffer};
-use gridlight::reconstruct::{Backend, GBuffer, GBufferSource, NO_OBJECT};
+use gridlight::gbuffer::{GBuffer, GBufferSource, GpuGBuffer, NO_OBJECT};
+use gridlight::gpu::{Backend, GpuContext};
 use gridlight::scene::{self, AssetSearchPath};
 use gridlight_actors::state::{Environment, Geometry, Light, Object, SceneState, Transform};
 

@@ -6,7 +6,7 @@
 
 use std::process::Command;
 
-use gridlight::lan::{Testbed, TestbedSpec};
+use gridlight::tools::lan::{Testbed, TestbedSpec};
 use serde_json::Value;
 
 /// Why this machine cannot build testbeds, printed as the test's skip message.

@@ -18,8 +18,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
-use gridlight::eval::flip::{flip, DEFAULT_PPD};
 use gridlight::image_io::display_pixel;
+use gridlight::tools::eval::flip::{flip, DEFAULT_PPD};
 
 const EXE: &str = env!("CARGO_BIN_EXE_gridlight");
 const WIDTH: u32 = 128;
@@ -90,7 +90,7 @@ fn master_image(scene: &Path, dir: &Path) -> Vec<Vec3> {
         line.clear();
         let n = stdout.read_line(&mut line).expect("the master's stdout");
         assert!(n > 0, "the master ended before listening");
-        if let Some(a) = line.strip_prefix(gridlight::master_cmd::LISTENING_PREFIX) {
+        if let Some(a) = line.strip_prefix(gridlight::master::launch::LISTENING_PREFIX) {
             break a.trim().to_string();
         }
     };

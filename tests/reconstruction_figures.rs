@@ -5,8 +5,8 @@
 //! With 96×72 pixels we use S = 16 sets: the tiles are then 24×18 pixels, larger than
 //! twice the fill radius, as 64 tiles of 80×60 are at the paper's 640×480.
 
-use gridlight::eval::{loss, sequence, FrameSource, SyntheticSource};
 use gridlight::reconstruct::ReconstructParams;
+use gridlight::tools::eval::{loss, sequence, FrameSource, SyntheticSource};
 
 const W: u32 = 96;
 const H: u32 = 72;

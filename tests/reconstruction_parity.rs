@@ -12,9 +12,10 @@
 //! Where no adapter exists the GPU half says it is skipped and why; the CPU half runs.
 
 use glam::Vec3;
+use gridlight::gbuffer::GBuffer;
 use gridlight::reconstruct::synthetic::{self, SyntheticView};
 use gridlight::reconstruct::{
-    CpuReconstructor, FrameInputs, GBuffer, Mode, ReconstructParams, Reconstructed,
+    CpuReconstructor, FrameInputs, Mode, ReconstructParams, Reconstructed,
 };
 
 const W: u32 = 96;
@@ -112,9 +113,13 @@ fn gpu_matches_cpu_reference() {
     println!("GPU adapter: {} ({:?})", ctx.adapter_info.name, ctx.adapter_info.backend);
     let frames = sequence();
     let cpu = run_cpu(&frames);
-    let mut gpu =
-        gridlight::gpu::GpuReconstructor::new(ctx.shared(), W, H, ReconstructParams::default())
-            .expect("GPU reconstructor");
+    let mut gpu = gridlight::reconstruct::GpuReconstructor::new(
+        ctx.shared(),
+        W,
+        H,
+        ReconstructParams::default(),
+    )
+    .expect("GPU reconstructor");
     for (f, c) in frames.iter().zip(&cpu) {
         let g = gpu.reconstruct(&inputs(f)).expect("GPU frame");
         assert_eq!(g.mode, c.mode);

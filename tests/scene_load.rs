@@ -150,10 +150,14 @@ fn manifest_lists_obj_mtl_textures_and_envmap_with_hashes() {
         hex::encode(obj.hash),
         "f109270c87e563790153e557890c1029eea4fda4ce360b4164fa8682627bd90d"
     );
+    // The master lists the same paths from what it loaded, without reading the OBJ again.
+    let listed = scene::asset_paths(&loaded.state, &loaded.assets).expect("asset paths");
+    assert_eq!(listed, names, "the master's asset list differs from the manifest");
     // A worker's view: assets from the state alone give the same data.
     let again = scene::load_assets(&loaded.state, &search_path(&path)).expect("load from state");
     assert_eq!(again.meshes.len(), loaded.assets.meshes.len());
     assert_eq!(again.textures.len(), loaded.assets.textures.len());
+    assert_eq!(again.obj_libraries, loaded.assets.obj_libraries);
 
     let Some(car) = load("envmap-object.toml") else { return };
     let manifest = scene::manifest(&car.state, &search_path(&path)).expect("manifest");

@@ -1,8 +1,8 @@
-//! Every WGSL file in `shaders/` parses and validates with naga (STYLE.md item 11), on
-//! every test run and without a GPU. Compute passes are validated as they are compiled:
-//! prefixed with `shaders/common.wgsl`.
+//! Every WGSL file under `shaders/` (laid out like the Rust that binds it) parses and validates
+//! with naga (STYLE.md item 11), on every test run and without a GPU. Reconstruction
+//! passes are validated as they are compiled: prefixed with their `common.wgsl`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn validate(name: &str, source: &str) {
     let module = naga::front::wgsl::parse_str(source)
@@ -15,34 +15,45 @@ fn validate(name: &str, source: &str) {
     .unwrap_or_else(|e| panic!("{name} does not validate: {e:?}"));
 }
 
+/// Every `.wgsl` file below `dir`.
+fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).expect("readable directory") {
+        let path = entry.expect("directory entry").path();
+        if path.is_dir() {
+            wgsl_files(&path, out);
+        } else if path.extension().and_then(|e| e.to_str()) == Some("wgsl") {
+            out.push(path);
+        }
+    }
+}
+
 #[test]
 fn every_wgsl_file_validates() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
-    let common = std::fs::read_to_string(dir.join("common.wgsl")).expect("shaders/common.wgsl");
+    let mut files = Vec::new();
+    wgsl_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders"), &mut files);
+    let common = gridlight::reconstruct::pass::COMMON_WGSL;
     let mut checked = 0;
-    for entry in std::fs::read_dir(&dir).expect("shaders/ exists") {
-        let path = entry.expect("directory entry").path();
-        if path.extension().and_then(|e| e.to_str()) != Some("wgsl") {
-            continue;
-        }
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("?").to_string();
-        let source = std::fs::read_to_string(&path).expect("readable shader");
+    for path in &files {
+        let name = path.display().to_string();
+        let source = std::fs::read_to_string(path).expect("readable shader");
         // Files that declare their own entry point and bindings are standalone (the raster
-        // pass); compute passes need the common block.
-        if name == "common.wgsl" || source.contains("// standalone") {
+        // pass, the window's blit); reconstruction passes need the common block.
+        if path.file_name().is_some_and(|n| n == "common.wgsl") || source.contains("// standalone")
+        {
             validate(&name, &source);
         } else {
             validate(&name, &format!("{common}\n{source}"));
         }
         checked += 1;
     }
-    assert!(checked >= 6, "expected the common block and five passes, found {checked} files");
+    // common, five passes, the G-buffer raster pass and the blit.
+    assert!(checked >= 8, "expected at least 8 WGSL files, found {checked}: {files:?}");
 }
 
 #[test]
 fn compiled_in_sources_are_the_files() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
-    for (name, source) in gridlight::gpu::shaders::PASSES {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/reconstruct");
+    for (name, source) in gridlight::reconstruct::pass::WGSL {
         let on_disk = std::fs::read_to_string(dir.join(name)).expect("pass file exists");
         assert_eq!(on_disk, source, "{name}");
     }

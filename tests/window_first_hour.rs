@@ -99,6 +99,7 @@ fn ctrl_c_stops_the_windowed_demo_its_window_and_its_workers() {
     assert_eq!(workers.len(), 2, "two local worker processes run under the demo: {workers:?}");
 
     // What the terminal sends on Ctrl-C (to the process; the demo's workers are its own).
+    // SAFETY: kill takes plain integers; the pid is this test's own child.
     unsafe { libc::kill(demo.id() as i32, libc::SIGINT) };
     let (status, took) = wait_exit(&mut demo, Duration::from_secs(20), "SIGINT");
     eprintln!("the windowed demo exited {took:?} after SIGINT (goal: within 2 s)");

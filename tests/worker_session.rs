@@ -17,7 +17,7 @@ use gridlight_actors::protocol::{
     AssetEntry, MasterMsg, Partition, PauseReason, SetsConfig, WorkerMsg, PROTOCOL_VERSION,
 };
 use gridlight_actors::sets::SetTable;
-use gridlight_actors::state::{Camera, RenderSettings, Resolution, SceneState};
+use gridlight_actors::state::{Camera, Resolution, SceneState};
 use sha2::{Digest, Sha256};
 use tokio::net::{TcpListener, TcpStream};
 use tokio_util::codec::Framed;
@@ -31,23 +31,11 @@ const STEP: Duration = Duration::from_secs(10);
 const SETS: SetsConfig = SetsConfig { sets: 16, partition: Partition::QuasiRandom };
 
 fn state(version: u64) -> SceneState {
+    let camera = Camera::pinhole(glam::Vec3::new(0.0, 0.0, 4.0), glam::Vec3::ZERO, 40.0);
     SceneState {
         version,
         seed: 1,
-        resolution: Resolution { width: 32, height: 24 },
-        camera: Camera {
-            position: glam::Vec3::new(0.0, 0.0, 4.0),
-            look_at: glam::Vec3::ZERO,
-            up: glam::Vec3::Y,
-            vfov_deg: 40.0,
-            aperture: 0.0,
-            focus_distance: 1.0,
-        },
-        objects: vec![],
-        materials: vec![],
-        lights: vec![],
-        environment: None,
-        render: RenderSettings::default(),
+        ..SceneState::empty(Resolution { width: 32, height: 24 }, camera)
     }
 }
 

@@ -1,50 +1,46 @@
 //! gridlight's master runtime: the wire protocol and its codec, the scene-state
 //! values that travel in it, and every actix actor of the master.
 //!
-//! This crate knows nothing of rendering, windows or wgpu: the display actor hands
+//! This crate knows nothing of rendering, windows or wgpu: the presenter hands
 //! frames to a sink trait, and the `gridlight` crate plugs the renderer, the
 //! reconstruction and the window into it (DESIGN.md, Layout).
 //!
-//! # Layout
-//! - Wire: [`protocol`] (messages and invariants), [`codec`] (length-prefixed
-//!   MessagePack), [`auth`] (HMAC challenge), [`integrity`] (per-result tags),
-//!   [`packing`] (RGB9E5), [`sets`] (pixel sets), [`discovery`] (the LAN announcement).
-//! - Values: [`state`] (scene state), [`edit`] and [`script`] (changes to it).
-//! - Actors, one per file: [`listener`], [`connection`], [`scheduler`], [`assembler`],
-//!   [`display`], [`scene_holder`], [`announcer`]; their pure logic: [`job_queue`], [`handout_plan`],
-//!   [`frame_table`], [`wait_heuristic`], [`accumulate`]; [`supervisor`] is the restart policy.
-//! - Entry point: [`master::start`] → [`master::MasterHandle`]; frames leave through a
-//!   [`sink::FrameSink`]; [`stats`], [`edit_latency`] and [`asset_store`] support them.
+//! # Layout: one folder per role
+//! - [`wire`]: what travels between master and workers (messages, codec, auth,
+//!   integrity, packing, counted sockets). [`scene`]: the values it carries (scene state,
+//!   edits, scripts, assets).
+//! - One folder per actor, the actor in its `mod.rs` and its pure partners beside it:
+//!   [`listener`], [`connection`] (+ the worker table), [`scheduler`] (+ job queue,
+//!   hand-out plan, pixel sets), [`assembler`] (+ frame table, wait heuristic,
+//!   accumulation, packed frames), [`presenter`] (+ sink, stats, edit latency),
+//!   [`scene_holder`], [`discovery`] (+ the announcer actor); [`supervision`] is the
+//!   restart policy they share.
+//! - Entry point: [`master::start`] → [`master::MasterHandle`].
+//!
+//! # Where messages live
+//! An actor message lives in the module of the actor that *handles* it; senders import
+//! it from there. Wire messages live in [`wire::protocol`].
+//!
+//! # The crate's face
+//! The modules that the worker side and the `gridlight` binary use are re-exported at
+//! the crate root under their own names (`gridlight_actors::protocol`, `::state`, ...),
+//! so that callers name what they use, not where it sits inside this crate.
 
-pub mod accumulate;
-pub mod announcer;
 pub mod assembler;
-pub mod asset_store;
-pub mod auth;
-pub mod codec;
 pub mod connection;
-pub mod counted_io;
 pub mod discovery;
-pub mod display;
-pub mod edit;
-pub mod edit_latency;
-pub mod frame_table;
-pub mod handout_plan;
-pub mod integrity;
-pub mod job_queue;
 pub mod listener;
 pub mod master;
-pub mod new_view;
-pub mod packed_frame;
-pub mod packing;
-pub mod protocol;
+pub mod presenter;
+pub mod scene;
 pub mod scene_holder;
 pub mod scheduler;
-pub mod script;
-pub mod sets;
-pub mod sink;
-pub mod state;
-pub mod stats;
-pub mod supervisor;
-pub mod wait_heuristic;
-pub mod workers;
+pub mod supervision;
+pub mod wire;
+
+pub use assembler::{packed_frame, wait_heuristic};
+pub use discovery::announcer;
+pub use presenter::{sink, stats};
+pub use scene::{asset_store, edit, script, state};
+pub use scheduler::sets;
+pub use wire::{auth, codec, integrity, packing, protocol, rejection};

@@ -5,8 +5,8 @@
 //! ```text
 //! Listener ─▶ Connection* ─WorkerReady─▶ Scheduler ─FrameScheduled/JobsHandedOut─▶ Assembler
 //!                 ▲ ─ResultArrived──────────────────────────────────────────────▶ │
-//!                 └───────────JobsAssigned── Scheduler ◀─FrameDisplayed─ Display ◀┘ FrameProgress
-//! SceneHolder ─StateChanged─▶ Scheduler;   Display ─ShownFrame─▶ sink thread
+//!                 └───────────JobsAssigned── Scheduler ◀─FrameDisplayed─ Presenter ◀┘ FrameProgress
+//! SceneHolder ─StateChanged─▶ Scheduler;   Presenter ─ShownFrame─▶ sink thread
 //! ```
 
 use std::net::SocketAddr;
@@ -16,28 +16,29 @@ use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
-use crate::announcer::{AnnounceConfig, Announcer};
 use crate::assembler::Assembler;
-use crate::asset_store::AssetStore;
+use crate::connection::workers::WorkerTable;
 use crate::connection::{ConnectionConfig, ConnectionLinks};
+use crate::discovery::announcer::{AnnounceConfig, Announcer};
 use crate::discovery::Announcement;
-use crate::display::{Display, DisplayConfig, Report, ReportState, SetPacing, Shutdown};
-use crate::edit::{Edit, EditError};
-use crate::frame_table::ConnId;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
-use crate::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
+use crate::presenter::sink::FrameSink;
+use crate::presenter::stats::Counters;
+use crate::presenter::{Presenter, PresenterConfig, Report, ReportState, SetPacing, Shutdown};
+use crate::scene::asset_store::AssetStore;
+use crate::scene::edit::{Edit, EditError};
+use crate::scene::state::{SceneState, StateVersion};
 use crate::scene_holder::{ApplyEdit, CurrentState, EditMade, PlayScript, SceneHolder};
+use crate::scheduler::sets::SetTable;
 use crate::scheduler::{PacingChanged, Scheduler, SchedulerLinks};
-use crate::sets::SetTable;
-use crate::sink::FrameSink;
-use crate::state::{SceneState, StateVersion};
-use crate::stats::Counters;
-use crate::supervisor::{InjectPanic, RestartPolicy};
+use crate::supervision::{InjectPanic, RestartPolicy};
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
 
-pub use crate::display::ReportState as MasterReport;
-pub use crate::sink::{ShownFrame, SinkError};
-pub use crate::stats::FrameStats;
-pub use crate::wait_heuristic::{Heuristic, Pacing};
+pub use crate::assembler::wait_heuristic::{Heuristic, Pacing};
+pub use crate::presenter::sink::{ShownFrame, SinkError};
+pub use crate::presenter::stats::FrameStats;
+pub use crate::presenter::ReportState as MasterReport;
 
 /// Default number of jobs a worker may hold (DESIGN.md decision 7).
 pub const DEFAULT_PIPELINE: u32 = 2;
@@ -68,7 +69,7 @@ pub struct MasterConfig {
     /// Announce this master on the LAN (`discovery`); `None`: stay quiet.
     pub announce: Option<AnnounceConfig>,
     /// Frames the display hands to the sink ahead of it (1 for the least latency, 2 to
-    /// keep a fast sink busy: [`crate::display::DEFAULT_SINK_IN_FLIGHT`]).
+    /// keep a fast sink busy: [`crate::presenter::DEFAULT_SINK_IN_FLIGHT`]).
     pub sink_in_flight: usize,
     /// A state change discards the queued jobs of older versions and the display does
     /// not wait for their held ones (default); `false` only to measure what that gains.
@@ -93,7 +94,7 @@ impl MasterConfig {
             restart: RestartPolicy::default(),
             announce: None,
             discard_stale_jobs: true,
-            sink_in_flight: crate::display::DEFAULT_SINK_IN_FLIGHT,
+            sink_in_flight: crate::presenter::DEFAULT_SINK_IN_FLIGHT,
         }
     }
 }
@@ -103,7 +104,7 @@ impl MasterConfig {
 pub enum ActorKind {
     Scheduler,
     Assembler,
-    Display,
+    Presenter,
     SceneHolder,
 }
 
@@ -127,9 +128,11 @@ pub struct MasterHandle {
     listener: Addr<Listener>,
     scheduler: Addr<Scheduler>,
     assembler: Addr<Assembler>,
-    display: Addr<Display>,
+    presenter: Addr<Presenter>,
     report: Arc<Report>,
     counters: Arc<Counters>,
+    /// The connected workers (`workers()`).
+    workers: Arc<WorkerTable>,
 }
 
 /// Starts a master listening on `config.listen`; returns once it accepts connections.
@@ -172,12 +175,13 @@ pub fn start(
     };
     let report = Arc::new(Report::default());
     let counters = Arc::new(Counters::default());
+    let workers = Arc::new(WorkerTable::default());
     let (tx, rx) = std::sync::mpsc::channel();
-    let (r, c) = (report.clone(), counters.clone());
+    let (r, c, w) = (report.clone(), counters.clone(), workers.clone());
     let thread = std::thread::Builder::new().name("gridlight-master".into()).spawn(move || {
         let system = System::new();
         let wired = system.block_on(async move {
-            let actors = wire(config, state, assets, sink, sets, socket, r, c);
+            let actors = wire(config, state, assets, sink, sets, socket, r, c, w);
             if let (Ok(_), Some(a)) = (&actors, announcer) {
                 a.start();
             }
@@ -196,7 +200,7 @@ pub fn start(
         Ok(Err(e)) => return Err(e),
         Err(_) => return Err(std::io::Error::other("the master thread ended while starting")),
     };
-    let Actors { scene, listener, scheduler, assembler, display } = actors;
+    let Actors { scene, listener, scheduler, assembler, presenter } = actors;
     Ok(MasterHandle {
         local_addr,
         system,
@@ -205,9 +209,10 @@ pub fn start(
         listener,
         scheduler,
         assembler,
-        display,
+        presenter,
         report,
         counters,
+        workers,
     })
 }
 
@@ -216,7 +221,7 @@ struct Actors {
     listener: Addr<Listener>,
     scheduler: Addr<Scheduler>,
     assembler: Addr<Assembler>,
-    display: Addr<Display>,
+    presenter: Addr<Presenter>,
 }
 
 /// Creates every actor inside the running system. Contexts are made first so that the
@@ -231,43 +236,46 @@ fn wire(
     socket: std::net::TcpListener,
     report: Arc<Report>,
     counters: Arc<Counters>,
+    workers: Arc<WorkerTable>,
 ) -> std::io::Result<Actors> {
     let socket = tokio::net::TcpListener::from_std(socket)?;
     let state = Arc::new(state);
     let threshold = config.queue_threshold.unwrap_or(2 * config.sets.sets as usize);
 
-    let display_ctx = Context::<Display>::new();
+    let presenter_ctx = Context::<Presenter>::new();
     let assembler_ctx = Context::<Assembler>::new();
     let scheduler_ctx = Context::<Scheduler>::new();
-    let (display, assembler, scheduler) =
-        (display_ctx.address(), assembler_ctx.address(), scheduler_ctx.address());
+    let (presenter, assembler, scheduler) =
+        (presenter_ctx.address(), assembler_ctx.address(), scheduler_ctx.address());
 
-    let display_config = DisplayConfig {
+    let presenter_config = PresenterConfig {
         pacing: config.pacing,
         initial_frame_time: config.initial_frame_time,
         max_frames: config.max_frames,
         policy: config.restart,
         sink_in_flight: config.sink_in_flight,
     };
-    display_ctx.run(Display::new(
-        display_config,
+    presenter_ctx.run(Presenter::new(
+        presenter_config,
         sink,
         assembler.clone().recipient(),
         scheduler.clone().recipient(),
         counters.clone(),
+        workers.clone(),
         report,
     ));
     assembler_ctx.run(Assembler::new(
         sets.clone(),
-        display.clone().recipient(),
+        presenter.clone().recipient(),
         counters.clone(),
+        workers.clone(),
         config.restart,
     ));
     let links = SchedulerLinks {
         frames_to: assembler.clone().recipient(),
         handouts_to: assembler.clone().recipient(),
-        abandoned_to: display.clone().recipient(),
-        outdated_to: display.clone().recipient(),
+        abandoned_to: presenter.clone().recipient(),
+        outdated_to: presenter.clone().recipient(),
     };
     scheduler_ctx.run(
         Scheduler::new(
@@ -292,6 +300,7 @@ fn wire(
         pipeline: config.pipeline,
         heartbeat: config.heartbeat,
         peer_timeout: config.peer_timeout,
+        workers,
     });
     // Connections report their end to the listener, their supervisor.
     let listener_ctx = Context::<Listener>::new();
@@ -304,7 +313,7 @@ fn wire(
         ended_to: listener_addr.clone().recipient(),
     };
     listener_ctx.run(Listener::new(socket, config.max_connections, conn_config, links, counters));
-    Ok(Actors { scene, listener: listener_addr, scheduler, assembler, display })
+    Ok(Actors { scene, listener: listener_addr, scheduler, assembler, presenter })
 }
 
 impl MasterHandle {
@@ -321,14 +330,14 @@ impl MasterHandle {
     /// Changes the pacing (wait heuristic bounds or frame rate) from now on; a bad value
     /// is refused with the reason and the pacing stays as it was.
     pub fn set_pacing(&self, pacing: Pacing) -> Result<(), MasterError> {
-        block_on(self.display.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)?;
+        block_on(self.presenter.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)?;
         self.scheduler.do_send(PacingChanged(pacing));
         Ok(())
     }
 
     /// The workers connected now, with their rates.
-    pub fn workers(&self) -> Vec<crate::workers::WorkerInfo> {
-        self.counters.workers_table.list()
+    pub fn workers(&self) -> Vec<crate::connection::workers::WorkerInfo> {
+        self.workers.list()
     }
 
     /// Applies an edit that happened at `at` (an input event), without waiting: the
@@ -382,7 +391,7 @@ impl MasterHandle {
         match actor {
             ActorKind::Scheduler => self.scheduler.do_send(InjectPanic),
             ActorKind::Assembler => self.assembler.do_send(InjectPanic),
-            ActorKind::Display => self.display.do_send(InjectPanic),
+            ActorKind::Presenter => self.presenter.do_send(InjectPanic),
             ActorKind::SceneHolder => self.scene.do_send(InjectPanic),
         }
     }
@@ -419,7 +428,7 @@ impl MasterHandle {
 
     fn shutdown(&mut self) -> std::io::Result<()> {
         let Some(thread) = self.thread.take() else { return Ok(()) };
-        if self.display.try_send(Shutdown).is_err() {
+        if self.presenter.try_send(Shutdown).is_err() {
             self.system.stop();
         }
         match thread.join() {

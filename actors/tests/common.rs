@@ -7,7 +7,7 @@ use std::sync::mpsc::{channel, Receiver, Sender};
 use std::time::Duration;
 
 use bytes::BytesMut;
-use glam::{Quat, Vec3};
+use glam::Vec3;
 use gridlight_actors::auth;
 use gridlight_actors::codec::{to_frame, WorkerCodec};
 use gridlight_actors::integrity::ResultKey;
@@ -33,42 +33,12 @@ pub fn table() -> SetTable {
 }
 
 pub fn scene() -> SceneState {
-    SceneState {
-        version: 1,
-        seed: 7,
-        resolution: Resolution { width: W, height: H },
-        camera: Camera {
-            position: Vec3::new(0.0, 1.0, 4.0),
-            look_at: Vec3::new(0.0, 1.0, 0.0),
-            up: Vec3::Y,
-            vfov_deg: 40.0,
-            aperture: 0.0,
-            focus_distance: 1.0,
-        },
-        objects: vec![Object {
-            name: "box".into(),
-            geometry: Geometry::Cube,
-            transform: Transform {
-                translation: Vec3::ZERO,
-                rotation: Quat::IDENTITY,
-                scale: Vec3::ONE,
-            },
-            materials: vec![0],
-            visible: true,
-        }],
-        materials: vec![Material {
-            name: "white".into(),
-            kind: MaterialKind::Diffuse,
-            base_color: Vec3::splat(0.8),
-            base_color_texture: None,
-            roughness: 1.0,
-            ior: 1.5,
-            emission: Vec3::ZERO,
-        }],
-        lights: vec![],
-        environment: None,
-        render: RenderSettings::default(),
-    }
+    let camera = Camera::pinhole(Vec3::new(0.0, 1.0, 4.0), Vec3::new(0.0, 1.0, 0.0), 40.0);
+    SceneState { seed: 7, ..SceneState::empty(Resolution { width: W, height: H }, camera) }
+        .with_object(
+            Object::new("box", Geometry::Cube),
+            Material::diffuse("white", Vec3::splat(0.8)),
+        )
 }
 
 /// A fast configuration on an ephemeral loopback port.

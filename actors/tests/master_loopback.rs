@@ -225,7 +225,7 @@ fn a_killed_or_panicking_connection_ends_alone_and_the_master_goes_on() {
     assert!(other.expect_rejected().contains("internal error"));
     m.inject_panic(ActorKind::Scheduler);
     m.inject_panic(ActorKind::Assembler);
-    m.inject_panic(ActorKind::Display);
+    m.inject_panic(ActorKind::Presenter);
     m.inject_panic(ActorKind::SceneHolder);
     let seen = m.report().shown;
     assert!(m.wait_for_frames(seen + 5, Duration::from_secs(20)), "frames stopped after faults");

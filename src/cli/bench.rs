@@ -10,10 +10,10 @@ use std::sync::Arc;
 use anyhow::Context;
 
 use super::GlobalArgs;
-use crate::bench::trace::{bench_scene, TraceReport, TraceSettings};
-use crate::reconstruct::bench::BenchSettings as ReconBench;
 use crate::render::testscenes;
 use crate::scene::{self, AssetSearchPath};
+use crate::tools::bench::reconstruct::BenchSettings as ReconBench;
+use crate::tools::bench::trace::{bench_scene, TraceReport, TraceSettings};
 
 /// Arguments of `gridlight bench`.
 #[derive(Debug, Clone, clap::Args)]
@@ -103,7 +103,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
                 gpu: !args.no_gpu,
                 ..ReconBench::default()
             };
-            let report = crate::reconstruct::bench::run(&settings)?;
+            let report = crate::tools::bench::reconstruct::run(&settings)?;
             println!("{}", serde_json::to_string(&report)?);
             Ok(())
         }

@@ -1,7 +1,7 @@
 //! `gridlight bench lan`: the grid across network-namespace hosts behind rate-limited links.
 
 use super::GlobalArgs;
-use crate::bench::lan::{
+use crate::tools::bench::lan::{
     self as lan_bench, LanOptions, DEFAULT_HOSTS, DEFAULT_LINKS_MBIT, DEFAULT_RENDER_MS,
     DEFAULT_THREADS,
 };

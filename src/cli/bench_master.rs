@@ -1,7 +1,7 @@
 //! `gridlight bench master`: the master alone, with null-render workers on loopback.
 
 use super::GlobalArgs;
-use crate::bench::master::{self as master_bench, BenchOptions, DEFAULT_CONNECTIONS};
+use crate::tools::bench::master::{self as master_bench, BenchOptions, DEFAULT_CONNECTIONS};
 
 /// Arguments of `gridlight bench master`.
 #[derive(Debug, Clone, clap::Args)]

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use super::GlobalArgs;
-use crate::bench::owner_impact::{self, OwnerImpactOptions};
+use crate::tools::bench::owner_impact::{self, OwnerImpactOptions};
 use crate::worker::Priority;
 
 /// Arguments of `gridlight bench owner-impact`.
@@ -64,7 +64,7 @@ pub fn run_owner_impact(args: OwnerImpactArgs, global: &GlobalArgs) -> anyhow::R
 
 /// Spins and prints what it did as JSON.
 pub fn run_busy_loop(args: BusyLoopArgs) -> anyhow::Result<()> {
-    let r = crate::bench::busy_loop::run(args.threads, args.seconds);
+    let r = crate::tools::bench::busy_loop::run(args.threads, args.seconds);
     println!("{}", serde_json::to_string(&r)?);
     Ok(())
 }

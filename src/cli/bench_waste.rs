@@ -1,7 +1,7 @@
 //! `gridlight bench waste`: the useful fraction of returned results at each grid size.
 
 use super::GlobalArgs;
-use crate::bench::waste::{self, WasteOptions, DEFAULT_JOB_MS, DEFAULT_WORKERS};
+use crate::tools::bench::waste::{self, WasteOptions, DEFAULT_JOB_MS, DEFAULT_WORKERS};
 
 /// Arguments of `gridlight bench waste`.
 #[derive(Debug, Clone, clap::Args)]

@@ -19,8 +19,8 @@ use tracing::info;
 use super::master::{DisplayArgs, PacingArgs, DEFAULT_SETS};
 use super::GlobalArgs;
 use crate::children::Children;
-use crate::headless::HeadlessOptions;
-use crate::master_cmd::{self, AnnounceOptions, MasterOptions};
+use crate::master::headless::HeadlessOptions;
+use crate::master::launch::{self, AnnounceOptions, MasterOptions};
 use crate::scene::SceneSource;
 
 /// Where a headless demo writes when `--out` is not given.
@@ -143,9 +143,9 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             shot_dir: args.out.clone(),
             ..crate::window::WindowOptions::default()
         };
-        master_cmd::run_window(&opts, window, start_workers, Some(Box::new(stop_workers.clone())))
+        launch::run_window(&opts, window, start_workers, Some(Box::new(stop_workers.clone())))
     } else {
-        master_cmd::run(&opts, start_workers)
+        launch::run(&opts, start_workers)
     };
     stop_workers();
     let _ = std::fs::remove_file(&secret_file);

@@ -14,11 +14,11 @@ use serde_json::json;
 
 use super::GlobalArgs;
 use crate::actors::state::Resolution;
-use crate::eval::{loss, sequence, FrameSource, RenderSource, SyntheticSource};
 use crate::image_io;
 use crate::reconstruct::ReconstructParams;
 use crate::render::testscenes;
 use crate::scene::{self, AssetSearchPath};
+use crate::tools::eval::{loss, sequence, FrameSource, RenderSource, SyntheticSource};
 
 /// The evaluations.
 #[derive(Debug, clap::Subcommand)]

@@ -8,11 +8,12 @@ use anyhow::bail;
 use gridlight_actors::protocol::{Partition, SetsConfig};
 
 use super::GlobalArgs;
-use crate::headless::HeadlessOptions;
-use crate::master_cmd::{self, AnnounceOptions, MasterOptions, DEFAULT_LISTEN};
-use crate::reconstruct::{Backend, ReconstructParams};
+use crate::gpu::Backend;
+use crate::master::headless::HeadlessOptions;
+use crate::master::launch::{self, AnnounceOptions, MasterOptions, DEFAULT_LISTEN};
+use crate::master::view::View;
+use crate::reconstruct::ReconstructParams;
 use crate::scene::{PacingOverrides, SceneSource};
-use crate::view::View;
 
 /// Sets per frame when `--sets` is not given (DESIGN.md decision 1).
 pub const DEFAULT_SETS: u32 = 64;
@@ -243,11 +244,11 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             shot_dir: args.out.clone().unwrap_or_else(|| PathBuf::from(".")),
             ..crate::window::WindowOptions::default()
         };
-        let report = master_cmd::run_window(&opts, window, |_| Ok(()), None)?;
+        let report = launch::run_window(&opts, window, |_| Ok(()), None)?;
         tracing::info!(shown = report.shown, skipped = report.skipped, "master finished");
         return Ok(());
     }
-    let report = master_cmd::run(&opts, |_| Ok(()))?;
+    let report = launch::run(&opts, |_| Ok(()))?;
     tracing::info!(shown = report.shown, skipped = report.skipped, "master finished");
     Ok(())
 }

@@ -5,8 +5,8 @@
 use anyhow::Context;
 
 use super::GlobalArgs;
-use crate::faults::harness::HarnessConfig;
-use crate::faults::soak;
+use crate::tools::faults::harness::HarnessConfig;
+use crate::tools::faults::soak;
 
 /// Arguments of `gridlight soak`.
 #[derive(Debug, clap::Args)]

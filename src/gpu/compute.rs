@@ -1,14 +1,14 @@
 //! A compute pass as a small struct: one WGSL entry point `main` with an 8×8 workgroup
 //! over the image, a bind-group layout built from a list of binding kinds, and `encode`.
-
-use super::shaders;
+//! Device plumbing only: which passes exist and what they bind is the business of their
+//! owners (`crate::reconstruct::pass`).
 
 /// Workgroup edge of every image pass (`@workgroup_size(8, 8)` in the WGSL).
 pub const WORKGROUP: u32 = 8;
 
 /// What sits at each binding of a pass (binding index = position in the list).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Slot {
+pub enum Binding {
     /// The `Params` uniform buffer.
     Uniform,
     /// A non-filterable float texture read with `textureLoad`.
@@ -28,15 +28,20 @@ pub struct ComputePass {
 }
 
 impl ComputePass {
-    /// Compiles `pass` (prefixed with the common WGSL) against the given slots.
-    pub fn new(device: &wgpu::Device, name: &'static str, pass: &str, slots: &[Slot]) -> Self {
-        let entries: Vec<wgpu::BindGroupLayoutEntry> = slots
+    /// Compiles `source` (a complete WGSL module) against the given bindings.
+    pub fn new(
+        device: &wgpu::Device,
+        name: &'static str,
+        source: &str,
+        bindings: &[Binding],
+    ) -> Self {
+        let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
             .iter()
             .enumerate()
-            .map(|(i, slot)| wgpu::BindGroupLayoutEntry {
+            .map(|(i, binding)| wgpu::BindGroupLayoutEntry {
                 binding: i as u32,
                 visibility: wgpu::ShaderStages::COMPUTE,
-                ty: binding_type(*slot),
+                ty: binding_type(*binding),
                 count: None,
             })
             .collect();
@@ -51,7 +56,7 @@ impl ComputePass {
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(name),
-            source: wgpu::ShaderSource::Wgsl(shaders::with_common(pass).into()),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(name),
@@ -64,7 +69,7 @@ impl ComputePass {
         Self { name, pipeline, layout }
     }
 
-    /// A bind group with one resource per slot, in slot order.
+    /// A bind group with one resource per binding, in binding order.
     pub fn bind(
         &self,
         device: &wgpu::Device,
@@ -101,23 +106,23 @@ impl ComputePass {
     }
 }
 
-fn binding_type(slot: Slot) -> wgpu::BindingType {
+fn binding_type(slot: Binding) -> wgpu::BindingType {
     match slot {
-        Slot::Uniform => wgpu::BindingType::Buffer {
+        Binding::Uniform => wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Uniform,
             has_dynamic_offset: false,
             min_binding_size: None,
         },
-        Slot::Texture | Slot::TextureArray => wgpu::BindingType::Texture {
+        Binding::Texture | Binding::TextureArray => wgpu::BindingType::Texture {
             sample_type: wgpu::TextureSampleType::Float { filterable: false },
-            view_dimension: if slot == Slot::Texture {
+            view_dimension: if slot == Binding::Texture {
                 wgpu::TextureViewDimension::D2
             } else {
                 wgpu::TextureViewDimension::D2Array
             },
             multisampled: false,
         },
-        Slot::Storage(format) => wgpu::BindingType::StorageTexture {
+        Binding::Storage(format) => wgpu::BindingType::StorageTexture {
             access: wgpu::StorageTextureAccess::WriteOnly,
             format,
             view_dimension: wgpu::TextureViewDimension::D2,

@@ -1,17 +1,14 @@
-//! GPU side of the master: the wgpu context, the reconstruction compute passes and the
-//! G-buffer raster pass. WGSL sources live in `shaders/` and are compiled in.
+//! Device plumbing of the master's GPU work: the wgpu context, the [`Backend`] choice,
+//! compute passes as small structs, readback and textures. It knows no pass: the passes
+//! and their WGSL live with their owners (`crate::reconstruct::pass`, `crate::gbuffer`).
 
+mod backend;
 pub mod compute;
 pub mod context;
-pub mod gbuffer;
-mod raster;
 pub mod readback;
-pub mod reconstruct;
-pub mod shaders;
 
+pub use backend::Backend;
 pub use context::{GpuContext, GpuError};
-pub use gbuffer::GpuGBuffer;
-pub use reconstruct::GpuReconstructor;
 
 /// A 2-D texture (array of `layers`) without mipmaps or multisampling: every texture the
 /// passes make.

@@ -10,7 +10,7 @@ use bytemuck::Zeroable;
 use glam::Vec4;
 
 use super::history::{Accumulation, HistoryRing};
-use super::passes::{self, FillInputs, Outputs, PassConsts, PastFrame};
+use super::pass::{self as passes, FillInputs, Outputs, PassConsts, PastFrame};
 use super::planes::{GuidePlanes, Layout, Planes3};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
 

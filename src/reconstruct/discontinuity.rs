@@ -12,7 +12,7 @@
 //!
 //! so that D = 1 for a pixel against itself. Pixels whose camera ray hit no surface have a
 //! zero normal and therefore D = 0 against everything. The WGSL passes
-//! (`shaders/common.wgsl`) evaluate exactly these expressions in the same order.
+//! (`shaders/reconstruct/common.wgsl`) evaluate exactly these expressions in the same order.
 
 use std::ops::{Add, Mul, Sub};
 

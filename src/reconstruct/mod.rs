@@ -1,60 +1,50 @@
-//! Spatio-temporal reconstruction of partial, noisy frames (paper §4.3.1), CPU reference.
+//! Spatio-temporal reconstruction of partial, noisy frames (paper §4.3.1).
 //!
-//! Per shown frame, on demodulated radiance (BRIEF.md's convention), guided by the
-//! frame's [`GBuffer`]:
-//! 1. **accumulate** this frame's samples; the average restarts whenever the scene state
-//!    changes, so while it is unchanged the image refines progressively (step 4);
-//! 2. **fill** pixels without samples from calculated neighbours within `radius`,
-//!    weighted by the discontinuity function D and k = 1;
-//! 3. while interacting (the first frame of a scene state), **temporal**: blend with the
-//!    previous `history` frames' filled radiance, w = 1/(F_i − F_j) times the temporal D;
-//! 4. while interacting, the **edge-aware Gaussian** (7 wide, σ = 1, times D);
-//! 5. **remodulate** the albedo, add directly seen emission, tonemap for display.
-//!
-//! [`CpuReconstructor`] is the multithreaded reference; `crate::gpu::GpuReconstructor`
-//! runs the same maths as WGSL compute passes; [`Reconstructor`] picks one.
+//! Per shown frame, on demodulated radiance (reflected radiance divided by the G-buffer's
+//! albedo; DESIGN.md), guided by the frame's [`GBuffer`], the five passes of [`pass`] run
+//! in order: accumulate, fill, and while interacting (the first frame of a scene state)
+//! temporal and the edge-aware Gaussian, then remodulate. Each pass keeps its CPU kernel,
+//! WGSL and GPU binding together in `pass/`; the pipelines that run them are
+//! [`CpuReconstructor`] (the multithreaded reference, `cpu.rs`) and [`GpuReconstructor`]
+//! (`gpu.rs`, on the device plumbing of `crate::gpu`); [`Reconstructor`] picks one.
+//! The CPU kernels' support is `planes.rs` (bordered planes), `simd.rs` (vectors and ISA
+//! dispatch) and `discontinuity.rs` (D); `history.rs` is the bookkeeping both pipelines
+//! share.
 
 use glam::Vec3;
 use gridlight_actors::protocol::FrameNo;
 use gridlight_actors::state::StateVersion;
 use rayon::prelude::*;
 
-pub mod bench;
 pub mod cpu;
 pub mod discontinuity;
-pub mod emission;
-mod fill;
-mod gaussian;
-pub mod gbuffer;
+pub mod gpu;
 pub mod history;
 pub mod params;
-pub mod passes;
+pub mod pass;
 pub mod planes;
 pub mod simd;
 pub mod synthetic;
 pub mod tonemap;
 
 pub use cpu::CpuReconstructor;
-pub use gbuffer::{scene_scale, GBuffer, GBufferError, GBufferSource, NO_OBJECT};
+pub use gpu::GpuReconstructor;
 pub use params::ReconstructParams;
 
-use crate::gpu::{GpuContext, GpuError, GpuReconstructor};
+use crate::gbuffer::{GBuffer, GBufferError};
+use crate::gpu::{Backend, GpuContext, GpuError};
 
 /// Why a frame could not be reconstructed.
 #[derive(Debug, thiserror::Error)]
 pub enum ReconstructError {
     #[error("reconstruction parameter `{name}`: {why}")]
     BadParam { name: &'static str, why: String },
-    #[error("{what} is {}×{}, the reconstructor is {}×{}", got.0, got.1, expected.0, expected.1)]
-    SizeMismatch { what: &'static str, expected: (u32, u32), got: (u32, u32) },
-    #[error("G-buffer plane `{plane}` has {got} entries, expected {expected}")]
-    PlaneLength { plane: &'static str, expected: usize, got: usize },
     #[error("{what} has {got} entries, expected one per pixel ({expected})")]
     InputLength { what: &'static str, expected: usize, got: usize },
     #[error("radiance of pixel {pixel} is not finite and non-negative: {value}")]
     BadRadiance { pixel: usize, value: Vec3 },
-    #[error("scene scale {0} is not a positive number")]
-    BadScale(f32),
+    #[error(transparent)]
+    GBuffer(#[from] GBufferError),
     #[error(transparent)]
     Gpu(#[from] GpuError),
 }
@@ -122,17 +112,6 @@ pub struct Reconstructed {
     pub colour: Vec<Vec3>,
     /// Tonemapped sRGB, 8-bit RGBA (for display and PNG).
     pub display: Vec<[u8; 4]>,
-}
-
-/// Which implementation to use (for reconstruction and for G-buffers alike): the CPU
-/// path, the GPU path, or the GPU only on a hardware adapter.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-pub enum Backend {
-    Cpu,
-    Gpu,
-    /// The GPU when a hardware adapter exists, else the CPU.
-    #[default]
-    Auto,
 }
 
 /// A reconstructor a frame sink can call once per shown frame, on the CPU or the GPU.

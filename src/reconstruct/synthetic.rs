@@ -6,7 +6,7 @@
 
 use glam::Vec3;
 
-use super::gbuffer::{GBuffer, NO_OBJECT};
+use crate::gbuffer::{GBuffer, NO_OBJECT};
 
 /// A camera at `eye` looking down −z (towards the origin), 45° vertical field of view.
 #[derive(Clone, Copy, Debug)]

@@ -1,6 +1,6 @@
 //! Display encoding of reconstructed colour, through `crate::image_io` (exposure in
 //! stops, Narkowicz's ACES filmic fit, sRGB) so that the window, PNGs and the GPU pass
-//! (`shaders/remodulate.wgsl`, same expressions) show the same image.
+//! (`shaders/reconstruct/remodulate.wgsl`, same expressions) show the same image.
 
 use glam::Vec3;
 

@@ -231,28 +231,13 @@ fn trace_path(
             wo = frame.to_local(wo_world);
         }
 
-        // Next-event estimation.
+        // Next-event estimation; its random numbers are drawn either way, so that the
+        // stream's indices do not depend on the strategy or the material.
         let u_light = stream.next4();
         if nee && !bsdf.is_delta() {
-            if let Some(ls) = lights.sample(surface.p, [u_light[0], u_light[1], u_light[2]]) {
-                let (f, bsdf_pdf) = bsdf.eval(wo, frame.to_local(ls.wi));
-                if f != Vec3::ZERO && ls.radiance != Vec3::ZERO {
-                    let origin = offset(surface.p, ng, ls.wi);
-                    let tmax = if ls.dist.is_finite() {
-                        (ls.dist * (1.0 - 1e-3)).max(0.0)
-                    } else {
-                        f32::INFINITY
-                    };
-                    *rays += 1;
-                    if !scene.tlas.occluded(origin, ls.wi, tmax) {
-                        let contribution = if ls.pdf == 0.0 {
-                            f * ls.radiance
-                        } else {
-                            f * ls.radiance * (mis(ls.pdf, bsdf_pdf) / ls.pdf)
-                        };
-                        indirect += throughput * contribution;
-                    }
-                }
+            let u = [u_light[0], u_light[1], u_light[2]];
+            if let Some(c) = next_event(scene, &bsdf, &frame, (surface.p, ng), wo, u, rays) {
+                indirect += throughput * c;
             }
         }
 
@@ -279,6 +264,37 @@ fn trace_path(
     }
     out.reflected = indirect;
     out
+}
+
+/// Next-event estimation at a surface point `at` = (position, geometric normal): one
+/// light sample, shadow-tested (one ray) and MIS-weighted against the BSDF; `None` when
+/// it adds nothing. The contribution still has to be multiplied by the path throughput.
+#[inline(always)]
+fn next_event(
+    scene: &RenderScene,
+    bsdf: &Bsdf,
+    frame: &Frame,
+    (p, ng): (Vec3, Vec3),
+    wo: Vec3,
+    u: [f32; 3],
+    rays: &mut u64,
+) -> Option<Vec3> {
+    let ls = scene.lights.sample(p, u)?;
+    let (f, bsdf_pdf) = bsdf.eval(wo, frame.to_local(ls.wi));
+    if f == Vec3::ZERO || ls.radiance == Vec3::ZERO {
+        return None;
+    }
+    let origin = offset(p, ng, ls.wi);
+    let tmax = if ls.dist.is_finite() { (ls.dist * (1.0 - 1e-3)).max(0.0) } else { f32::INFINITY };
+    *rays += 1;
+    if scene.tlas.occluded(origin, ls.wi, tmax) {
+        return None;
+    }
+    Some(if ls.pdf == 0.0 {
+        f * ls.radiance
+    } else {
+        f * ls.radiance * (mis(ls.pdf, bsdf_pdf) / ls.pdf)
+    })
 }
 
 /// Renders the given pixels (index = y*width + x, y = 0 is the top row),
@@ -484,7 +500,12 @@ mod tests {
     #[test]
     fn v3_kernel_matches_the_baseline_bit_for_bit() {
         if !v3::available() {
-            eprintln!("skipped: this CPU lacks x86-64-v3, so only the baseline kernel runs");
+            let why = "the CPU lacks x86-64-v3, so only the baseline kernel runs";
+            crate::testing::skip(
+                "v3_kernel_matches_the_baseline",
+                crate::testing::Missing::CpuFeature,
+                why,
+            );
             return;
         }
         let kinds = [

@@ -338,6 +338,7 @@ impl Builder<'_> {
                         ids.push(self.materials.len() as MaterialId - 1);
                     }
                     mtl_ids.insert(mesh.clone(), ids);
+                    self.assets.obj_libraries.insert(mesh.clone(), data.mtl_assets);
                     self.assets.meshes.insert(geometry.clone(), Arc::new(data.mesh));
                 }
                 let file_ids = &mtl_ids[mesh];

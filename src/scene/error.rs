@@ -51,6 +51,8 @@ pub enum AssetError {
     BadMesh { file: PathBuf, reason: String },
     #[error("cannot decode image `{}`: {source}", file.display())]
     Image { file: PathBuf, source: image::ImageError },
+    #[error("OBJ `{0}` is in the scene state but was not loaded with it")]
+    NotLoaded(String),
 }
 
 impl SceneError {

@@ -19,10 +19,18 @@ use crate::shapes;
 pub fn load_assets(state: &SceneState, resolver: &dyn AssetResolver) -> Result<Assets, AssetError> {
     let mut assets = Assets::default();
     for object in &state.objects {
-        if !assets.meshes.contains_key(&object.geometry) {
-            let mesh = load_mesh(&object.geometry, resolver)?;
-            assets.meshes.insert(object.geometry.clone(), Arc::new(mesh));
+        if assets.meshes.contains_key(&object.geometry) {
+            continue;
         }
+        let mesh = match &object.geometry {
+            Geometry::Obj { path } => {
+                let data = read_obj(path, resolver)?;
+                assets.obj_libraries.insert(path.clone(), data.mtl_assets);
+                data.mesh
+            }
+            builtin => load_mesh(builtin, resolver)?,
+        };
+        assets.meshes.insert(object.geometry.clone(), Arc::new(mesh));
     }
     for material in &state.materials {
         if let Some(path) = &material.base_color_texture {

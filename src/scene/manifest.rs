@@ -15,12 +15,33 @@ use sha2::{Digest, Sha256};
 use super::error::AssetError;
 use super::obj::read_obj;
 use super::search::AssetResolver;
+use crate::assets::Assets;
 
-/// The manifest of `state`, with files found through `resolver`.
+/// The manifest of `state`, with files found through `resolver`, each read and hashed
+/// here (an OBJ is parsed for the MTL files it names). The master does not call it: it
+/// lists [`asset_paths`] from the assets it loaded and its asset store hashes each file
+/// as it adds it, so that every asset is read and hashed once at start.
 pub fn manifest(
     state: &SceneState,
     resolver: &dyn AssetResolver,
 ) -> Result<Vec<AssetEntry>, AssetError> {
+    let paths = paths_with(state, |obj| Ok(read_obj(obj, resolver)?.mtl_assets))?;
+    paths.into_iter().map(|path| entry(path, resolver)).collect()
+}
+
+/// The asset paths of `state`'s manifest, in manifest order, each once, with each OBJ's
+/// MTL files taken from `assets` (loaded with the state, so nothing is read again).
+pub fn asset_paths(state: &SceneState, assets: &Assets) -> Result<Vec<String>, AssetError> {
+    paths_with(state, |obj| {
+        assets.obj_libraries.get(obj).cloned().ok_or_else(|| AssetError::NotLoaded(obj.to_owned()))
+    })
+}
+
+/// The manifest's paths; `libraries` gives the MTL files an OBJ names.
+fn paths_with(
+    state: &SceneState,
+    libraries: impl Fn(&str) -> Result<Vec<String>, AssetError>,
+) -> Result<Vec<String>, AssetError> {
     let mut paths: Vec<String> = Vec::new();
     let push = |p: &str, paths: &mut Vec<String>| {
         if !paths.iter().any(|x| x == p) {
@@ -33,7 +54,7 @@ pub fn manifest(
                 continue;
             }
             push(path, &mut paths);
-            for mtl in read_obj(path, resolver)?.mtl_assets {
+            for mtl in libraries(path)? {
                 push(&mtl, &mut paths);
             }
         }
@@ -46,7 +67,7 @@ pub fn manifest(
     if let Some(map) = state.environment.as_ref().and_then(|e| e.map.as_ref()) {
         push(map, &mut paths);
     }
-    paths.into_iter().map(|path| entry(path, resolver)).collect()
+    Ok(paths)
 }
 
 fn entry(path: String, resolver: &dyn AssetResolver) -> Result<AssetEntry, AssetError> {

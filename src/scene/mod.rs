@@ -30,7 +30,7 @@ pub use builtin::SceneSource;
 pub use description::{DisplayDesc, SceneFile};
 pub use error::{AssetError, Problem, SceneError};
 pub use loader::load_assets;
-pub use manifest::manifest;
+pub use manifest::{asset_paths, manifest};
 pub use pacing::{display_pacing, PacingOverrides};
 pub use search::{AssetResolver, AssetSearchPath, ResolveError};
 

@@ -1,5 +1,5 @@
 //! The picture pass: uploads the newest picture into a texture at render resolution and
-//! draws it into a viewport of the window with `shaders/blit.wgsl`.
+//! draws it into a viewport of the window with `blit.wgsl`.
 //!
 //! A small GPU pass in the STYLE.md item 5 shape (`new`, `upload`, `encode`). The texture is
 //! recreated only when the render resolution changes, not when the window is resized.
@@ -8,7 +8,7 @@ use super::layout::Rect;
 use super::picture::Picture;
 
 /// The blit shader's source, checked by naga in the tests.
-pub const SHADER: &str = include_str!("../../shaders/blit.wgsl");
+pub const SHADER: &str = include_str!("../../shaders/window/blit.wgsl");
 
 /// Texture, bind group and pipeline that show one picture.
 pub struct BlitPass {

@@ -143,41 +143,21 @@ pub fn join_power(colour: Vec3, intensity: f32) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gridlight_actors::state::{Geometry, MaterialKind, Object, RenderSettings, Resolution};
+    use gridlight_actors::state::{Geometry, MaterialKind, Object, Resolution};
 
     fn state() -> SceneState {
-        SceneState {
+        let camera = Camera::pinhole(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 40.0);
+        let light = Light::Point { position: Vec3::Y, intensity: Vec3::splat(5.0) };
+        let scene = SceneState {
             version: 3,
             seed: 1,
-            resolution: Resolution { width: 8, height: 6 },
-            camera: Camera {
-                position: Vec3::new(0.0, 0.0, 4.0),
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                vfov_deg: 40.0,
-                aperture: 0.0,
-                focus_distance: 4.0,
-            },
-            objects: vec![Object {
-                name: "box".into(),
-                geometry: Geometry::Cube,
-                transform: Transform::default(),
-                materials: vec![0],
-                visible: true,
-            }],
-            materials: vec![Material {
-                name: "white".into(),
-                kind: MaterialKind::Diffuse,
-                base_color: Vec3::splat(0.8),
-                base_color_texture: None,
-                roughness: 1.0,
-                ior: 1.5,
-                emission: Vec3::ZERO,
-            }],
-            lights: vec![Light::Point { position: Vec3::Y, intensity: Vec3::splat(5.0) }],
-            environment: None,
-            render: RenderSettings::default(),
+            ..SceneState::empty(Resolution { width: 8, height: 6 }, camera)
         }
+        .with_object(
+            Object::new("box", Geometry::Cube),
+            Material::diffuse("white", Vec3::splat(0.8)),
+        );
+        SceneState { lights: vec![light], ..scene }
     }
 
     #[test]

@@ -12,7 +12,7 @@ use winit::window::Window;
 
 /// Why the window could not get a GPU surface.
 #[derive(Debug, Error)]
-pub enum GpuError {
+pub enum SurfaceError {
     #[error("cannot create a wgpu surface for the window: {0}")]
     Surface(#[from] wgpu::CreateSurfaceError),
     #[error("no graphics adapter can present to this window: {0}")]
@@ -42,7 +42,7 @@ pub enum Acquired {
 
 impl Gpu {
     /// Creates a surface for `window` and a device that can present to it.
-    pub fn new(window: Arc<Window>) -> Result<Self, GpuError> {
+    pub fn new(window: Arc<Window>) -> Result<Self, SurfaceError> {
         let size = window.inner_size();
         let display: Box<dyn wgpu::wgt::WgpuHasDisplayHandle> = Box::new(Arc::clone(&window));
         let instance = wgpu::Instance::new(
@@ -69,7 +69,7 @@ impl Gpu {
             .copied()
             .find(|f| !f.is_srgb())
             .or_else(|| caps.formats.first().copied())
-            .ok_or(GpuError::NoFormat)?;
+            .ok_or(SurfaceError::NoFormat)?;
         let alpha_mode =
             caps.alpha_modes.first().copied().unwrap_or(wgpu::CompositeAlphaMode::Auto);
         let config = wgpu::SurfaceConfiguration {

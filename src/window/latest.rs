@@ -11,12 +11,12 @@ use std::time::Duration;
 /// Newest-value slot shared by one producer and one consumer thread.
 #[derive(Debug, Default)]
 pub struct Latest<T> {
-    inner: Mutex<Slot<T>>,
+    inner: Mutex<LatestState<T>>,
     ready: Condvar,
 }
 
 #[derive(Debug)]
-struct Slot<T> {
+struct LatestState<T> {
     value: Option<T>,
     /// Values put but overwritten before anyone took them.
     replaced: u64,
@@ -24,7 +24,7 @@ struct Slot<T> {
     closed: bool,
 }
 
-impl<T> Default for Slot<T> {
+impl<T> Default for LatestState<T> {
     fn default() -> Self {
         Self { value: None, replaced: 0, closed: false }
     }
@@ -41,12 +41,12 @@ pub enum Waited<T> {
 impl<T> Latest<T> {
     /// An empty, open slot.
     pub fn new() -> Self {
-        Self { inner: Mutex::new(Slot::default()), ready: Condvar::new() }
+        Self { inner: Mutex::new(LatestState::default()), ready: Condvar::new() }
     }
 
     // A panic while the lock was held cannot leave the slot inconsistent (every update is a
     // single assignment), so a poisoned lock is simply taken over.
-    fn lock(&self) -> MutexGuard<'_, Slot<T>> {
+    fn lock(&self) -> MutexGuard<'_, LatestState<T>> {
         self.inner.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 

@@ -13,7 +13,7 @@
 //!
 //! # Files
 //! - [`app`]: the winit application (input, drawing).
-//! - [`gpu`], [`blit`]: the wgpu surface and the picture pass (`shaders/blit.wgsl`).
+//! - [`gpu`], [`blit`]: the wgpu surface and the picture pass (`blit.wgsl`).
 //! - [`camera`], [`manipulate`]: camera controllers and object moves (pure maths).
 //! - [`edits`]: scene edits, their coalescing and local application.
 //! - [`panel`], [`status`]: the egui side panel over plain data.
@@ -45,7 +45,7 @@ pub mod screenshot;
 pub mod session;
 pub mod status;
 
-use crate::view::View;
+use crate::master::view::View;
 use edits::SceneEdit;
 use latest::Latest;
 use panel::PacingChoice;
@@ -64,7 +64,7 @@ pub enum UserEvent {
 
 /// One frame ready to draw.
 #[derive(Clone, Debug)]
-pub struct Composed {
+pub struct ReadyFrame {
     /// What the window shows for the selected view.
     pub picture: Picture,
     /// Final linear colour (albedo · radiance + emission), for EXR screenshots; only the
@@ -146,7 +146,10 @@ pub fn display_available() -> bool {
 /// compose thread); it runs once the event loop exists, before the window opens.
 pub fn run<F>(options: WindowOptions, start: F) -> Result<(), WindowError>
 where
-    F: FnOnce(EventLoopProxy<UserEvent>, Arc<Latest<Composed>>) -> Result<Box<dyn Session>, String>,
+    F: FnOnce(
+        EventLoopProxy<UserEvent>,
+        Arc<Latest<ReadyFrame>>,
+    ) -> Result<Box<dyn Session>, String>,
 {
     let event_loop = new_event_loop()?;
     // Ctrl-C and SIGTERM close the window the way its close button does.

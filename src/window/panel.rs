@@ -11,7 +11,7 @@ use gridlight_actors::state::{Environment, Light, MaterialKind, SceneState};
 use super::camera::CameraMode;
 use super::edits::{join_power, split_power, SceneEdit};
 use super::status::{human_bytes, StatusView};
-use crate::view::View;
+use crate::master::view::View;
 use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
 
 /// Pacing of frames as the panel edits it (paper §4.3).
@@ -222,7 +222,7 @@ fn workers_list(ui: &mut egui::Ui, workers: &[super::status::WorkerRow]) {
     }
     for w in workers {
         ui.horizontal(|ui| {
-            let [r, g, b] = crate::view::worker_colour(w.id);
+            let [r, g, b] = crate::master::view::worker_colour(w.id);
             let (rect, _) = ui.allocate_exact_size(egui::vec2(12.0, 12.0), egui::Sense::hover());
             ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(r, g, b));
             let cores = if w.cores == 1 { "core" } else { "cores" };

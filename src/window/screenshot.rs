@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 use super::panel::ShotFormat;
-use super::Composed;
+use super::ReadyFrame;
 
 /// Why a screenshot could not be written.
 #[derive(Debug, Error)]
@@ -21,7 +21,11 @@ pub enum ScreenshotError {
 }
 
 /// Writes `shown` into `dir` in `format` and returns the file's path.
-pub fn save(dir: &Path, shown: &Composed, format: ShotFormat) -> Result<PathBuf, ScreenshotError> {
+pub fn save(
+    dir: &Path,
+    shown: &ReadyFrame,
+    format: ShotFormat,
+) -> Result<PathBuf, ScreenshotError> {
     std::fs::create_dir_all(dir)
         .map_err(|source| ScreenshotError::Folder { path: dir.to_path_buf(), source })?;
     let ext = match format {
@@ -69,8 +73,8 @@ mod tests {
     use glam::Vec3;
     use std::sync::Arc;
 
-    fn composed(linear: bool) -> Composed {
-        Composed {
+    fn composed(linear: bool) -> ReadyFrame {
+        ReadyFrame {
             picture: Picture { width: 2, height: 1, rgba: vec![255, 0, 0, 255, 0, 255, 0, 255] },
             linear: linear
                 .then(|| Arc::new(vec![Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.5, 0.0)])),

@@ -25,10 +25,10 @@ use super::latest::Latest;
 use super::panel::PacingChoice;
 use super::picture::Picture;
 use super::status::{StatusView, WorkerRow};
-use super::{Composed, Session, UserEvent};
-use crate::compose::{Composer, SharedScene};
+use super::{ReadyFrame, Session, UserEvent};
+use crate::master::compose::{Composer, SharedScene};
+use crate::master::view::View;
 use crate::render;
-use crate::view::View;
 
 /// The view the window wants, shared with the sink (index into [`View::ALL`]).
 pub type SharedView = Arc<AtomicU8>;
@@ -37,7 +37,7 @@ pub type SharedView = Arc<AtomicU8>;
 pub struct WindowSink {
     composer: Composer,
     view: SharedView,
-    frames: Arc<Latest<Composed>>,
+    frames: Arc<Latest<ReadyFrame>>,
     proxy: EventLoopProxy<UserEvent>,
 }
 
@@ -45,20 +45,20 @@ impl WindowSink {
     pub fn new(
         composer: Composer,
         view: SharedView,
-        frames: Arc<Latest<Composed>>,
+        frames: Arc<Latest<ReadyFrame>>,
         proxy: EventLoopProxy<UserEvent>,
     ) -> Self {
         Self { composer, view, frames, proxy }
     }
 
-    fn compose(&mut self, frame: &ShownFrame) -> Result<Composed, SinkError> {
+    fn compose(&mut self, frame: &ShownFrame) -> Result<ReadyFrame, SinkError> {
         let view =
             View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
         let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.to_string()))?;
         let picture = Picture::from_pixels(c.width, c.height, &c.rgba)
             .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
         let status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
-        Ok(Composed { picture, linear: c.linear.map(Arc::new), status })
+        Ok(ReadyFrame { picture, linear: c.linear.map(Arc::new), status })
     }
 }
 
@@ -67,7 +67,7 @@ impl FrameSink for WindowSink {
         let composed = self.compose(&frame)?;
         // A frame the window never draws hands the edits it was the first to show on to
         // the newer one (whose state includes them): their latency ends when that is drawn.
-        let carry = |old: Composed, new: &mut Composed| {
+        let carry = |old: ReadyFrame, new: &mut ReadyFrame| {
             new.status.edits_at.splice(0..0, old.status.edits_at).for_each(drop);
         };
         if !self.frames.put_merging(composed, carry)
@@ -391,17 +391,8 @@ mod tests {
         };
         let env = Environment { map: None, color: Vec3::ONE, intensity: 2.0, rotation_deg: 30.0 };
         let light = Light::Point { position: Vec3::Y, intensity: Vec3::splat(3.0) };
-        let state = SceneState {
-            version: 1,
-            seed: 0,
-            resolution: gridlight_actors::state::Resolution { width: 4, height: 4 },
-            camera,
-            objects: vec![],
-            materials: vec![],
-            lights: vec![light],
-            environment: None,
-            render: Default::default(),
-        };
+        let resolution = gridlight_actors::state::Resolution { width: 4, height: 4 };
+        let state = SceneState { lights: vec![light], ..SceneState::empty(resolution, camera) };
         let edits: Vec<(Duration, Edit)> = [
             SceneEdit::Camera(camera),
             SceneEdit::Environment(Some(env)),

@@ -76,7 +76,7 @@ mod tests {
     }
 
     fn state_with(geometry: Geometry) -> SceneState {
-        let mut state = crate::bench::master::bench_state();
+        let mut state = crate::tools::bench::master::bench_state();
         state.objects.push(Object {
             name: "tri".into(),
             geometry,

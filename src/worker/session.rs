@@ -215,6 +215,8 @@ where
                             "job (frame {frame}, set {set}) names state version {state_version}, which was never sent"
                         )));
                     };
+                    // Tests count these: a (frame, set) received twice was handed out twice.
+                    debug!(frame, set, "job received");
                     if paused {
                         debug!(frame, set, "job dropped: paused");
                         continue;
@@ -384,11 +386,10 @@ where
 }
 
 /// Rejections that say "never", not "later": who we are (protocol version, secret) is
-/// wrong, and reconnecting cannot change it. Classified as the master counts them, so
-/// that a link fault during the handshake (a garbled frame, a stall) is not mistaken for
-/// one and does not end the worker.
+/// wrong, and reconnecting cannot change it; a link fault during the handshake (a
+/// garbled frame, a stall) is not mistaken for one and does not end the worker.
 fn is_fatal_rejection(reason: &str) -> bool {
-    matches!(gridlight_actors::stats::rejection_kind(reason), "version" | "auth")
+    gridlight_actors::rejection::is_final(reason)
 }
 
 fn unexpected(wanted: &str, got: &MasterMsg) -> WorkerError {

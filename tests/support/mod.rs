@@ -59,7 +59,9 @@ impl Proc {
     }
 
     pub fn signal(&self, sig: i32) {
-        assert_eq!(unsafe { libc::kill(self.pid(), sig) }, 0, "signal {sig} delivered");
+        // SAFETY: kill takes plain integers; the pid is this test's own child.
+        let sent = unsafe { libc::kill(self.pid(), sig) };
+        assert_eq!(sent, 0, "signal {sig} delivered");
     }
 
     pub fn stderr(&self) -> String {
@@ -179,7 +181,7 @@ impl Master {
         let addr = eventually("the master's listening line", || {
             let out = proc.stdout.lock().unwrap().clone();
             out.lines()
-                .find_map(|l| l.strip_prefix(gridlight::master_cmd::LISTENING_PREFIX))
+                .find_map(|l| l.strip_prefix(gridlight::master::launch::LISTENING_PREFIX))
                 .map(|a| a.trim().parse::<SocketAddr>().expect("a socket address"))
         });
         Master { proc, addr, dir: dir.to_path_buf() }

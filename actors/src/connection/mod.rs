@@ -1,0 +1,274 @@
+//! The connection actor: one per worker socket, a thin shell around its [`Session`].
+//!
+//! The [`Session`] holds the protocol (phases, authentication, credits, state versions,
+//! result checks, the answered memory); this actor feeds it what arrives (worker
+//! messages, the scheduler's jobs, a keep-alive tick) and carries out the actions it
+//! returns: writing to the socket, asking the scheduler for jobs, forwarding results to
+//! the frame assembler, keeping the worker table and the counters, and closing after a
+//! `Rejected` that names the problem. Any protocol violation ends this connection only;
+//! every log line names the peer. The jobs it held are never handed out again.
+
+pub mod session;
+pub mod workers;
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use actix::io::{FramedWrite, WriteHandler};
+use actix::prelude::*;
+use tokio::net::tcp::OwnedWriteHalf;
+
+use crate::assembler::ResultArrived;
+use crate::listener::ConnectionEnded;
+use crate::presenter::stats::Counters;
+use crate::scene::asset_store::AssetStore;
+use crate::scheduler::job_queue::Job;
+use crate::scheduler::sets::SetTable;
+use crate::scheduler::{JobAnswered, WorkerLeft, WorkerReady};
+use crate::supervision::{contain, InjectPanic};
+use crate::wire::codec::{MasterCodec, ProtocolError};
+use crate::wire::counted_io::CountedWrite;
+use crate::wire::protocol::{ConnId, MasterMsg, WorkerMsg};
+use crate::wire::rejection::{Rejection, RejectionKind};
+use session::{Action, Session};
+use workers::WorkerTable;
+
+/// How long a rejected peer gets to read its `Rejected` before the socket is dropped.
+const CLOSE_GRACE: Duration = Duration::from_secs(2);
+
+/// To a connection: jobs handed to it.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct JobsAssigned(pub Vec<Job>);
+
+/// Test hook: end this connection abruptly, as a crash would (no `Rejected`).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct Kill;
+
+/// What every connection shares.
+pub struct ConnectionConfig {
+    pub secret: Option<Vec<u8>>,
+    pub sets: Arc<SetTable>,
+    pub assets: Arc<AssetStore>,
+    /// k: jobs a worker may hold at once.
+    pub pipeline: u32,
+    pub heartbeat: Duration,
+    pub peer_timeout: Duration,
+    /// The connected workers, for the status panel; each connection writes its row.
+    pub workers: Arc<WorkerTable>,
+}
+
+/// Where a connection's messages go.
+#[derive(Clone)]
+pub struct ConnectionLinks {
+    pub ready_to: Recipient<WorkerReady>,
+    pub left_to: Recipient<WorkerLeft>,
+    /// The scheduler measures each worker's job time from its answers.
+    pub answered_to: Recipient<JobAnswered>,
+    pub results_to: Recipient<ResultArrived>,
+    pub ended_to: Recipient<ConnectionEnded>,
+}
+
+type Writer = FramedWrite<MasterMsg, CountedWrite<OwnedWriteHalf>, MasterCodec>;
+
+/// One worker's link.
+pub struct Connection {
+    id: ConnId,
+    peer: SocketAddr,
+    session: Session,
+    config: Arc<ConnectionConfig>,
+    links: ConnectionLinks,
+    writer: Writer,
+    counters: Arc<Counters>,
+    /// Ended on an error (the listener's per-peer policy counts these).
+    failed: bool,
+}
+
+impl Connection {
+    pub fn new(
+        id: ConnId,
+        peer: SocketAddr,
+        writer: Writer,
+        config: Arc<ConnectionConfig>,
+        links: ConnectionLinks,
+        counters: Arc<Counters>,
+    ) -> Self {
+        let session = Session::new(id, config.clone(), Instant::now());
+        Self { id, peer, session, config, links, writer, counters, failed: false }
+    }
+}
+
+impl Actor for Connection {
+    type Context = Context<Self>;
+
+    fn started(&mut self, ctx: &mut Context<Self>) {
+        tracing::debug!(conn = self.id, peer = %self.peer, "connection opened");
+        ctx.run_interval(self.session.tick_interval(), |act, ctx| {
+            let actions = act.session.tick(Instant::now());
+            act.apply(actions, ctx);
+        });
+    }
+
+    fn stopped(&mut self, _: &mut Context<Self>) {
+        self.links.left_to.do_send(WorkerLeft { conn: self.id });
+        if self.session.welcomed() {
+            let c = &self.counters;
+            let count = if self.session.paused() { &c.paused_workers } else { &c.workers };
+            count.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+            self.config.workers.left(self.id);
+        }
+        self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed });
+        tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer,
+            jobs_lost = self.session.held(), "connection closed");
+    }
+}
+
+impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
+    fn handle(&mut self, item: Result<WorkerMsg, ProtocolError>, ctx: &mut Context<Self>) {
+        if self.session.closing() {
+            return;
+        }
+        if self.session.welcomed() {
+            self.config.workers.heard(self.id, 0);
+        }
+        match item {
+            Ok(msg) => match contain(|| self.session.on_message(msg, Instant::now())) {
+                Ok(actions) => self.apply(actions, ctx),
+                Err(panic) => self.on_panic(&panic, ctx),
+            },
+            Err(ProtocolError::Io(e)) => {
+                tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer, cause = %e, "read failed");
+                self.counters.note_rejection(RejectionKind::Io);
+                self.failed = true;
+                ctx.stop();
+            }
+            Err(e) => {
+                let actions = self.session.on_bad_frame(&e);
+                self.apply(actions, ctx);
+            }
+        }
+    }
+
+    fn finished(&mut self, ctx: &mut Context<Self>) {
+        // While closing, the writer's end stops the actor once `Rejected` is out.
+        if !self.session.closing() {
+            ctx.stop();
+        }
+    }
+}
+
+impl WriteHandler<ProtocolError> for Connection {
+    fn error(&mut self, err: ProtocolError, _: &mut Context<Self>) -> Running {
+        tracing::warn!(conn = self.id, worker = %self.session.name(), peer = %self.peer, cause = %err, "write failed");
+        self.failed = true;
+        Running::Stop
+    }
+}
+
+impl Handler<JobsAssigned> for Connection {
+    type Result = ();
+    fn handle(&mut self, msg: JobsAssigned, ctx: &mut Context<Self>) {
+        let count = msg.0.len();
+        let actions = self.session.on_jobs(msg.0, Instant::now());
+        if actions.is_empty() && count > 0 {
+            tracing::debug!(conn = self.id, worker = %self.session.name(), jobs_lost = count, "jobs not sent");
+        }
+        self.apply(actions, ctx);
+    }
+}
+
+impl Handler<Kill> for Connection {
+    type Result = ();
+    fn handle(&mut self, _: Kill, ctx: &mut Context<Self>) {
+        tracing::warn!(conn = self.id, worker = %self.session.name(), peer = %self.peer, "connection killed (fault injection)");
+        self.failed = true;
+        ctx.stop();
+    }
+}
+
+impl Handler<InjectPanic> for Connection {
+    type Result = ();
+    fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
+        if let Err(panic) = contain(|| panic!("injected panic in connection {}", self.id)) {
+            self.on_panic(&panic, ctx);
+        }
+    }
+}
+
+impl Connection {
+    /// Carries out the session's actions, in order.
+    fn apply(&mut self, actions: Vec<Action>, ctx: &mut Context<Self>) {
+        for action in actions {
+            match action {
+                Action::Send(msg) => self.writer.write(msg),
+                Action::Joined => {
+                    Counters::add(&self.counters.workers, 1);
+                    let (name, cores) = (self.session.name(), self.session.cores());
+                    self.config.workers.joined(self.id, name, cores);
+                    self.config.workers.located(self.id, &self.peer.ip().to_string());
+                    tracing::info!(conn = self.id, worker = %name, peer = %self.peer, "worker joined");
+                }
+                Action::RequestJobs(credits) => self.links.ready_to.do_send(WorkerReady {
+                    conn: self.id,
+                    credits,
+                    jobs_to: ctx.address().recipient(),
+                }),
+                Action::Paused { reason, first } => {
+                    if first {
+                        tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer,
+                            %reason, "worker paused");
+                        self.links.left_to.do_send(WorkerLeft { conn: self.id });
+                        Counters::add(&self.counters.paused_workers, 1);
+                        self.counters.workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+                    }
+                    self.config.workers.paused(self.id, reason);
+                }
+                Action::Resumed => {
+                    tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer, "worker resumed");
+                    self.counters.paused_workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+                    Counters::add(&self.counters.workers, 1);
+                    self.config.workers.resumed(self.id);
+                }
+                Action::Answered(result) => {
+                    self.config.workers.heard(self.id, 1);
+                    self.config.workers.timed(self.id, result.render_us);
+                    let (frame, set) = (result.frame, result.set);
+                    self.links.answered_to.do_send(JobAnswered { conn: self.id, frame, set });
+                    self.links.results_to.do_send(ResultArrived { conn: self.id, result });
+                }
+                // Dropped and counted by the assembler.
+                Action::Duplicate(result) | Action::Unknown(result) => {
+                    self.links.results_to.do_send(ResultArrived { conn: self.id, result })
+                }
+                Action::Superseded { frame, set } => {
+                    Counters::add(&self.counters.jobs_superseded, 1);
+                    tracing::debug!(conn = self.id, frame, set, "held job superseded");
+                }
+                Action::Reject(why) => self.close_rejected(why, ctx),
+            }
+        }
+    }
+
+    /// Sends `Rejected` naming the problem, then closes once it is written.
+    fn close_rejected(&mut self, why: Rejection, ctx: &mut Context<Self>) {
+        tracing::warn!(conn = self.id, worker = %self.session.name(), peer = %self.peer,
+            reason = %why, kind = why.kind().as_str(), "connection rejected");
+        Counters::add(&self.counters.connections_rejected, 1);
+        self.counters.note_rejection(why.kind());
+        self.failed = true;
+        self.writer.write(MasterMsg::Rejected { reason: why.to_string() });
+        self.writer.close();
+        ctx.run_later(CLOSE_GRACE, |_, ctx| ctx.stop());
+    }
+
+    /// A panic contained in a handler: this connection ends (its supervisor's restart
+    /// is the worker reconnecting); the master goes on.
+    fn on_panic(&mut self, panic: &str, ctx: &mut Context<Self>) {
+        Counters::add(&self.counters.panics_contained, 1);
+        tracing::error!(conn = self.id, worker = %self.session.name(), peer = %self.peer, cause = panic, "panic contained");
+        let actions = self.session.reject(Rejection::Internal);
+        self.apply(actions, ctx);
+    }
+}

@@ -1,0 +1,250 @@
+//! The scene state: the absolute value a worker needs to render one view.
+//!
+//! A [`SceneState`] is camera, objects (geometry reference, transform, material
+//! binding), materials, lights, environment and render settings. It never carries
+//! asset data (meshes, textures, environment maps): those are named by their asset
+//! path and fetched once per worker (DESIGN.md decision 4). It travels whole, never
+//! as a diff (DESIGN.md decision 3), and every edit gives it a new
+//! [`StateVersion`]; the master's scene-state holder is the only place that bumps it.
+//!
+//! The types are plain serde values with glam vectors so that the master, the
+//! worker and the wire share one vocabulary; building render structures from them
+//! (meshes, BVHs) happens in the `gridlight` crate.
+
+use glam::{Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// Version of a scene state; strictly increasing within one master run.
+pub type StateVersion = u64;
+
+/// Index of a material in [`SceneState::materials`].
+pub type MaterialId = u32;
+
+/// Everything a worker needs to render one view, as an absolute value.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneState {
+    /// Changes on every edit; jobs name the version they must be rendered with.
+    pub version: StateVersion,
+    /// Scene-wide seed mixed into every sample's seed (STYLE.md item 9).
+    pub seed: u64,
+    pub resolution: Resolution,
+    pub camera: Camera,
+    pub objects: Vec<Object>,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    /// Radiance arriving from infinity; `None` means black.
+    pub environment: Option<Environment>,
+    pub render: RenderSettings,
+}
+
+impl SceneState {
+    /// An empty scene seen through `camera`: version 1, seed 0, no objects, materials,
+    /// lights or environment, default render settings. Scene files build the full value
+    /// (`gridlight::scene`); tests and benches start here and add what they need.
+    pub fn empty(resolution: Resolution, camera: Camera) -> Self {
+        Self {
+            version: 1,
+            seed: 0,
+            resolution,
+            camera,
+            objects: Vec::new(),
+            materials: Vec::new(),
+            lights: Vec::new(),
+            environment: None,
+            render: RenderSettings::default(),
+        }
+    }
+
+    /// Adds `object` with `material` as its only material.
+    pub fn with_object(mut self, mut object: Object, material: Material) -> Self {
+        object.materials = vec![self.materials.len() as MaterialId];
+        self.objects.push(object);
+        self.materials.push(material);
+        self
+    }
+}
+
+/// Image size in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Resolution {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Resolution {
+    /// Number of pixels in the image.
+    pub fn pixels(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+}
+
+/// A pinhole camera (aperture 0) or a thin lens.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Camera {
+    pub position: Vec3,
+    pub look_at: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub vfov_deg: f32,
+    /// Lens radius in scene units; 0 is a pinhole.
+    pub aperture: f32,
+    /// Distance to the plane in focus (used only when `aperture > 0`).
+    pub focus_distance: f32,
+}
+
+impl Camera {
+    /// A pinhole camera at `position` looking at `look_at`, +y up, in focus at `look_at`.
+    pub fn pinhole(position: Vec3, look_at: Vec3, vfov_deg: f32) -> Self {
+        let focus_distance = (look_at - position).length();
+        Self { position, look_at, up: Vec3::Y, vfov_deg, aperture: 0.0, focus_distance }
+    }
+}
+
+/// One placed instance of a piece of geometry.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Object {
+    /// Unique within the scene; edits and picking refer to objects by name.
+    pub name: String,
+    pub geometry: Geometry,
+    pub transform: Transform,
+    /// Material of each material slot of the geometry. An OBJ mesh has one slot per
+    /// material of its MTL, in the MTL's order, plus a last slot for faces that name
+    /// no material; built-in shapes have one slot.
+    pub materials: Vec<MaterialId>,
+    pub visible: bool,
+}
+
+impl Object {
+    /// A visible object at the origin (identity transform) using material 0.
+    pub fn new(name: &str, geometry: Geometry) -> Self {
+        Self {
+            name: name.into(),
+            geometry,
+            transform: Transform::default(),
+            materials: vec![0],
+            visible: true,
+        }
+    }
+}
+
+/// What an object is made of. Files are asset paths relative to an asset root,
+/// resolved by the loader (master: the asset search path; worker: its cache).
+#[derive(Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Geometry {
+    /// A Wavefront OBJ file (triangulated on load); its MTL and textures are assets too.
+    Obj { path: String },
+    /// A unit square in the xz-plane centred at the origin, normal +y.
+    Quad,
+    /// An axis-aligned unit cube centred at the origin.
+    Cube,
+    /// A unit sphere tessellated with the given number of subdivisions.
+    Sphere { subdivisions: u32 },
+}
+
+/// Translation, rotation and uniform scale, applied as `T * R * S`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    pub translation: Vec3,
+    pub rotation: Quat,
+    pub scale: Vec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE }
+    }
+}
+
+impl Transform {
+    /// The object-to-world matrix.
+    pub fn matrix(&self) -> glam::Mat4 {
+        glam::Mat4::from_scale_rotation_translation(self.scale, self.rotation, self.translation)
+    }
+}
+
+/// How a surface scatters light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MaterialKind {
+    /// Lambertian.
+    Diffuse,
+    /// GGX microfacet conductor; `base_color` is the reflectance at normal incidence.
+    Conductor,
+    /// Diffuse base under a GGX dielectric coat (plastic-like gloss).
+    Glossy,
+    /// Smooth (roughness 0) or rough GGX glass.
+    Dielectric,
+}
+
+/// Material parameters; everything here can be edited live.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    pub name: String,
+    pub kind: MaterialKind,
+    /// Linear RGB albedo / reflectance.
+    pub base_color: Vec3,
+    /// Asset path of an sRGB albedo texture that replaces `base_color`.
+    pub base_color_texture: Option<String>,
+    /// GGX roughness (perceptual, squared to alpha).
+    pub roughness: f32,
+    /// Index of refraction (dielectric, and the coat of `Glossy`).
+    pub ior: f32,
+    /// Emitted radiance (linear RGB); non-zero makes the surface a light.
+    pub emission: Vec3,
+}
+
+impl Material {
+    /// A Lambertian, untextured, non-emissive material of this albedo.
+    pub fn diffuse(name: &str, base_color: Vec3) -> Self {
+        Self {
+            name: name.into(),
+            kind: MaterialKind::Diffuse,
+            base_color,
+            base_color_texture: None,
+            roughness: 1.0,
+            ior: 1.5,
+            emission: Vec3::ZERO,
+        }
+    }
+}
+
+/// A light that is not emissive geometry.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Light {
+    /// Isotropic point light; `intensity` in W/sr per channel.
+    Point { position: Vec3, intensity: Vec3 },
+    /// Spot light with a smooth falloff between `inner_deg` and `outer_deg` half-angles.
+    Spot { position: Vec3, direction: Vec3, intensity: Vec3, inner_deg: f32, outer_deg: f32 },
+    /// Distant "sun" disc: `direction` points from the scene towards the sun;
+    /// `radiance` is per steradian of the disc, `angular_radius_deg` its size.
+    Sun { direction: Vec3, radiance: Vec3, angular_radius_deg: f32 },
+    /// One-sided emissive parallelogram `corner + u*edge_u + v*edge_v`, emitting
+    /// towards `edge_u × edge_v`.
+    Quad { corner: Vec3, edge_u: Vec3, edge_v: Vec3, radiance: Vec3 },
+}
+
+/// Light from infinity: an equirectangular HDR map or a constant colour.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Environment {
+    /// Asset path of an equirectangular HDR/EXR map; `None` means `color` everywhere.
+    pub map: Option<String>,
+    /// Constant radiance, or a tint multiplied into the map.
+    pub color: Vec3,
+    pub intensity: f32,
+    /// Rotation about the up (+y) axis in degrees.
+    pub rotation_deg: f32,
+}
+
+/// Path tracing settings that travel with the state.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RenderSettings {
+    /// Maximum path length in segments (5 = camera ray plus four bounces).
+    pub max_depth: u32,
+    /// Samples per pixel per update (per job).
+    pub spp: u32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self { max_depth: 5, spp: 4 }
+    }
+}

@@ -1,0 +1,134 @@
+//! The scene-state holder actor: owns the current [`SceneState`], applies edits (live
+//! or from an interaction script), bumps the version on every change and tells the
+//! scheduler. It is the only place a [`StateVersion`] is created.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use actix::prelude::*;
+
+use crate::presenter::stats::Counters;
+use crate::scene::edit::{apply, Edit, EditError};
+use crate::scene::state::{SceneState, StateVersion};
+use crate::scheduler::StateChanged;
+use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+
+/// Apply one edit; answers the new version.
+#[derive(Message, Debug, Clone)]
+#[rtype(result = "Result<StateVersion, EditError>")]
+pub struct ApplyEdit(pub Edit);
+
+/// Apply an edit made at `at` (the window's input event); nothing is answered.
+#[derive(Message, Debug, Clone)]
+#[rtype(result = "()")]
+pub struct EditMade {
+    pub edit: Edit,
+    pub at: Instant,
+}
+
+/// Apply each edit at its time after now.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct PlayScript(pub Vec<(Duration, Edit)>);
+
+/// The current state.
+#[derive(Message)]
+#[rtype(result = "Arc<SceneState>")]
+pub struct CurrentState;
+
+/// The current scene state and who hears about changes.
+pub struct SceneHolder {
+    state: Arc<SceneState>,
+    changes_to: Recipient<StateChanged>,
+    counters: Arc<Counters>,
+    restarts: RestartTracker,
+}
+
+impl SceneHolder {
+    pub fn new(
+        state: Arc<SceneState>,
+        changes_to: Recipient<StateChanged>,
+        counters: Arc<Counters>,
+        policy: RestartPolicy,
+    ) -> Self {
+        Self { state, changes_to, counters, restarts: RestartTracker::new(policy) }
+    }
+
+    /// Applies an edit that happened at `at` (logged for the edit-to-display latency).
+    fn apply(&mut self, edit: &Edit, at: Instant) -> Result<StateVersion, EditError> {
+        let mut next = (*self.state).clone();
+        apply(&mut next, edit)?;
+        next.version = self.state.version + 1;
+        let version = next.version;
+        self.state = Arc::new(next);
+        self.counters.edits.applied(version, at);
+        self.changes_to.do_send(StateChanged(self.state.clone()));
+        Ok(version)
+    }
+}
+
+impl Actor for SceneHolder {
+    type Context = Context<Self>;
+}
+
+impl Handler<ApplyEdit> for SceneHolder {
+    type Result = Result<StateVersion, EditError>;
+    fn handle(&mut self, msg: ApplyEdit, ctx: &mut Context<Self>) -> Self::Result {
+        match contain(|| self.apply(&msg.0, Instant::now())) {
+            Ok(r) => r,
+            Err(panic) => {
+                let counters = self.counters.clone();
+                // The state is an immutable value: keeping the last good one is the restart.
+                after_panic("scene holder", &panic, &mut self.restarts, &counters, ctx);
+                Err(EditError::BadValue {
+                    field: "edit",
+                    expected: "an edit that applies",
+                    value: panic,
+                })
+            }
+        }
+    }
+}
+
+impl Handler<PlayScript> for SceneHolder {
+    type Result = ();
+    fn handle(&mut self, msg: PlayScript, ctx: &mut Context<Self>) {
+        for (at, edit) in msg.0 {
+            ctx.run_later(at, move |act, _| match act.apply(&edit, Instant::now()) {
+                Ok(version) => tracing::debug!(version, ?edit, "script edit applied"),
+                Err(e) => tracing::warn!(cause = %e, ?edit, "script edit refused"),
+            });
+        }
+    }
+}
+
+impl Handler<EditMade> for SceneHolder {
+    type Result = ();
+    fn handle(&mut self, msg: EditMade, ctx: &mut Context<Self>) {
+        match contain(|| self.apply(&msg.edit, msg.at)) {
+            Ok(Ok(version)) => tracing::trace!(version, "edit applied"),
+            Ok(Err(e)) => tracing::warn!(cause = %e, edit = ?msg.edit, "edit refused"),
+            Err(panic) => {
+                let counters = self.counters.clone();
+                after_panic("scene holder", &panic, &mut self.restarts, &counters, ctx);
+            }
+        }
+    }
+}
+
+impl Handler<CurrentState> for SceneHolder {
+    type Result = Arc<SceneState>;
+    fn handle(&mut self, _: CurrentState, _: &mut Context<Self>) -> Arc<SceneState> {
+        self.state.clone()
+    }
+}
+
+impl Handler<InjectPanic> for SceneHolder {
+    type Result = ();
+    fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
+        if let Err(panic) = contain(|| panic!("injected panic in the scene holder")) {
+            let counters = self.counters.clone();
+            after_panic("scene holder", &panic, &mut self.restarts, &counters, ctx);
+        }
+    }
+}

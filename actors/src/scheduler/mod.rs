@@ -1,0 +1,318 @@
+//! The scheduler actor: the only place that hands out jobs (paper §4.2).
+//!
+//! It keeps the [`JobQueue`] topped up with frames of the latest scene state (each with the
+//! quota of sets the display can use), serves workers' credits in arrival order, each job
+//! from the frame the [`HandOutPlan`] says its result will be in time for, tells the frame
+//! assembler about every new frame and every hand-out *before* the job leaves (so a result
+//! can never overtake its bookkeeping), and drops queued jobs of frames the display has
+//! passed. The frame window grows with the credits and jobs the grid holds. When the
+//! scene state changes it discards the queued jobs of older versions at once and tells
+//! the display not to wait for the jobs of those frames still held by workers
+//! ([`FramesOutdated`]), so that the first frame of the new state is not queued behind
+//! a view the user has left (the edit-to-display latency).
+
+pub mod handout_plan;
+pub mod job_queue;
+pub mod sets;
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+use std::time::Instant;
+
+use actix::prelude::*;
+
+use crate::assembler::wait_heuristic::Pacing;
+use crate::assembler::{FrameScheduled, JobsHandedOut};
+use crate::connection::JobsAssigned;
+use crate::presenter::stats::Counters;
+use crate::presenter::{FramesAbandoned, FramesOutdated};
+use crate::scene::state::SceneState;
+use crate::scheduler::handout_plan::HandOutPlan;
+use crate::scheduler::job_queue::{Job, JobQueue};
+use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{FrameNo, SetNo};
+
+/// Most frames in flight however large the grid (each holds a frame table slot).
+const MAX_FRAME_WINDOW: u64 = 64;
+
+/// The scene state changed: new frames use it.
+#[derive(Message, Clone)]
+#[rtype(result = "()")]
+pub struct StateChanged(pub Arc<SceneState>);
+
+/// A connection's worker can take `credits` more jobs; send them to `jobs_to`.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct WorkerReady {
+    pub conn: ConnId,
+    pub credits: u32,
+    pub jobs_to: Recipient<JobsAssigned>,
+}
+
+/// A connection ended or its worker paused; its unserved credits are void (its held
+/// jobs are not redone).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct WorkerLeft {
+    pub conn: ConnId,
+}
+
+/// A connection received its worker's result for `(frame, set)` (in time or not): the
+/// worker's job time is measured from these.
+#[derive(Message, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct JobAnswered {
+    pub conn: ConnId,
+    pub frame: FrameNo,
+    pub set: SetNo,
+}
+
+/// The display paces frames this way from now on (its quota and deadlines follow).
+#[derive(Message, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct PacingChanged(pub Pacing);
+
+/// The display shown or skipped `frame`: jobs of it and earlier frames are discarded.
+#[derive(Message, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct FrameDisplayed {
+    pub frame: FrameNo,
+}
+
+/// Where the scheduler's events go.
+pub struct SchedulerLinks {
+    pub frames_to: Recipient<FrameScheduled>,
+    pub handouts_to: Recipient<JobsHandedOut>,
+    pub abandoned_to: Recipient<FramesAbandoned>,
+    pub outdated_to: Recipient<FramesOutdated>,
+}
+
+/// The job queue and the workers waiting for jobs.
+pub struct Scheduler {
+    /// S, queue threshold: what a restart rebuilds the queue from.
+    sets: u32,
+    threshold: usize,
+    queue: JobQueue,
+    /// Which frame each job should come from.
+    plan: HandOutPlan,
+    /// Connections with unserved credits, served front first.
+    demand: VecDeque<(ConnId, u32, Recipient<JobsAssigned>)>,
+    links: SchedulerLinks,
+    counters: Arc<Counters>,
+    restarts: RestartTracker,
+    /// Discard queued jobs of outdated state versions on a state change (the default;
+    /// off only to measure what it gains).
+    discard_stale: bool,
+}
+
+impl Scheduler {
+    pub fn new(
+        sets: u32,
+        threshold: usize,
+        state: Arc<SceneState>,
+        pacing: Pacing,
+        links: SchedulerLinks,
+        counters: Arc<Counters>,
+        policy: RestartPolicy,
+    ) -> Self {
+        let plan = HandOutPlan::new(pacing);
+        let mut queue = JobQueue::new(sets, threshold, state, 0);
+        queue.set_quota(plan.quota(sets));
+        Self {
+            discard_stale: true,
+            sets,
+            threshold,
+            queue,
+            plan,
+            demand: VecDeque::new(),
+            links,
+            counters,
+            restarts: RestartTracker::new(policy),
+        }
+    }
+}
+
+impl Scheduler {
+    /// Whether a state change discards the queued jobs of older versions (default: yes).
+    pub fn with_stale_discard(mut self, discard: bool) -> Self {
+        self.discard_stale = discard;
+        self
+    }
+}
+
+impl Actor for Scheduler {
+    type Context = Context<Self>;
+
+    fn started(&mut self, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| s.dispatch());
+    }
+}
+
+impl Handler<StateChanged> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, msg: StateChanged, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| {
+            s.queue.set_state(msg.0);
+            if !s.discard_stale {
+                return;
+            }
+            let discarded = s.queue.discard_outdated();
+            Counters::add(&s.counters.jobs_discarded_stale, discarded as u64);
+            // Every frame scheduled so far is of an older version.
+            let (before, state) = (s.queue.next_frame(), Arc::clone(s.queue.state()));
+            s.links.outdated_to.do_send(FramesOutdated { before, state });
+            tracing::debug!(discarded, "queued jobs of an outdated state discarded");
+            s.dispatch();
+        });
+    }
+}
+
+impl Handler<WorkerReady> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, msg: WorkerReady, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| {
+            match s.demand.iter_mut().find(|(c, _, _)| *c == msg.conn) {
+                Some(entry) => entry.1 += msg.credits,
+                None => s.demand.push_back((msg.conn, msg.credits, msg.jobs_to)),
+            }
+            s.dispatch();
+        });
+    }
+}
+
+impl Handler<WorkerLeft> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, msg: WorkerLeft, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| {
+            s.demand.retain(|(c, _, _)| *c != msg.conn);
+            // Its jobs are lost: other sets of those frames make up their quota.
+            for (frame, _) in s.plan.left(msg.conn) {
+                s.queue.queue_more(frame, 1);
+            }
+            s.dispatch();
+        });
+    }
+}
+
+impl Handler<JobAnswered> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, msg: JobAnswered, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| s.plan.answered(msg.conn, msg.frame, msg.set, Instant::now()));
+    }
+}
+
+impl Handler<PacingChanged> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, msg: PacingChanged, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| {
+            s.plan.set_pacing(msg.0);
+            s.queue.set_quota(s.plan.quota(s.sets));
+            s.dispatch();
+        });
+    }
+}
+
+impl Handler<FrameDisplayed> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, msg: FrameDisplayed, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| {
+            s.queue.frame_displayed(msg.frame);
+            s.plan.displayed(msg.frame, Instant::now());
+            s.dispatch();
+        });
+    }
+}
+
+impl Handler<InjectPanic> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |_| panic!("injected panic in the scheduler"));
+    }
+}
+
+impl Scheduler {
+    /// Serves every waiting connection in turn, each job from the frame the plan chooses
+    /// for it; a connection that no queued frame suits keeps its credits for later.
+    fn dispatch(&mut self) {
+        let now = Instant::now();
+        let credits: usize = self.demand.iter().map(|(_, n, _)| *n as usize).sum();
+        let quota = self.plan.quota(self.sets) as usize;
+        // Enough frames in flight for every credit and held job of the grid, plus two, and
+        // at a fixed rate as far ahead as the slowest worker's next result.
+        let window = (credits + self.plan.held_total()).div_ceil(quota) as u64
+            + 2
+            + self.plan.frames_ahead(now);
+        self.queue.set_frame_window(window.min(MAX_FRAME_WINDOW));
+        for _ in 0..self.demand.len() {
+            let Some((conn, credits, to)) = self.demand.pop_front() else { return };
+            let jobs = self.take_for(conn, credits, now);
+            let left = credits - jobs.len() as u32;
+            if !jobs.is_empty() {
+                Counters::add(&self.counters.jobs_handed_out, jobs.len() as u64);
+                let pairs = jobs.iter().map(|j| (j.frame, j.set)).collect();
+                // Bookkeeping first: the assembler must know before the result can exist.
+                self.links.handouts_to.do_send(JobsHandedOut { conn, jobs: pairs });
+                to.do_send(JobsAssigned(jobs));
+            }
+            if left > 0 {
+                // Round robin: a worker with credits left waits behind the others.
+                self.demand.push_back((conn, left, to));
+            }
+        }
+    }
+
+    /// Up to `credits` jobs for `conn`, topping the queue up as it empties, and opening
+    /// later frames (as far as the window allows) when no queued one is in time for it.
+    fn take_for(&mut self, conn: ConnId, credits: u32, now: Instant) -> Vec<Job> {
+        let mut jobs = Vec::new();
+        while jobs.len() < credits as usize {
+            self.top_up();
+            let mut frame = self.plan.choose(conn, &self.queue.frames(), now);
+            while !frame.is_some_and(|f| self.plan.fits(conn, f, now)) {
+                let Some(f) = self.queue.open_frame() else { break };
+                self.links.frames_to.do_send(FrameScheduled { frame: f.frame, state: f.state });
+                frame = self.plan.choose(conn, &self.queue.frames(), now);
+            }
+            let Some(job) = frame.and_then(|f| self.queue.take_from(f)) else { break };
+            self.plan.handed(conn, job.frame, job.set, now);
+            jobs.push(job);
+        }
+        jobs
+    }
+
+    /// Adds frames to the queue and tells the assembler about them.
+    fn top_up(&mut self) {
+        for f in self.queue.top_up() {
+            self.links.frames_to.do_send(FrameScheduled { frame: f.frame, state: f.state });
+        }
+    }
+
+    /// Runs a handler body; a panic restarts the queue (frame numbers continue, the
+    /// jobs it held are lost, never redone) after the policy's back-off.
+    fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self)) {
+        if let Err(msg) = contain(|| f(self)) {
+            let counters = self.counters.clone();
+            if after_panic("scheduler", &msg, &mut self.restarts, &counters, ctx) {
+                let state = self.queue.state().clone();
+                let first = self.queue.next_frame();
+                self.queue = JobQueue::new(self.sets, self.threshold, state, first);
+                self.queue.set_quota(self.plan.quota(self.sets));
+                self.links.abandoned_to.do_send(FramesAbandoned { before: first });
+                ctx.notify(Restarted);
+            }
+        }
+    }
+}
+
+/// Internal: resume dispatching once the restart back-off is over.
+#[derive(Message)]
+#[rtype(result = "()")]
+struct Restarted;
+
+impl Handler<Restarted> for Scheduler {
+    type Result = ();
+    fn handle(&mut self, _: Restarted, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |s| s.dispatch());
+    }
+}

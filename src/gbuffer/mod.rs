@@ -1,0 +1,327 @@
+//! The G-buffer: per-pixel primary-hit data that guides reconstruction and remodulation,
+//! all of it in this folder.
+//!
+//! Computed on the master for every pixel of a frame's scene state (DESIGN.md), by the
+//! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel) or the wgpu raster pass
+//! ([`GpuGBuffer`]: `gpu.rs` with its device objects in `raster.rs` and its WGSL in
+//! `raster.wgsl`); [`GBufferSource`] picks one and caches by state version. `emission.rs`
+//! refines the directly seen emission of converging frames; `ahead.rs` computes a new
+//! state's G-buffer on its own thread before its first frame is composed (`--gbuffer-ahead`).
+//! Stored as separate planes (structure of arrays) because each pass reads only some of
+//! them and the GPU uploads each as its own texture.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use gridlight_actors::state::{SceneState, StateVersion};
+
+use rayon::prelude::*;
+
+use crate::assets::Assets;
+use crate::gpu::{Backend, GpuContext, GpuError};
+
+pub mod ahead;
+pub mod emission;
+pub mod gpu;
+mod raster;
+
+use crate::render::{primary_hit, PixelSample, RenderError, RenderScene};
+pub use gpu::GpuGBuffer;
+
+/// Object id of pixels whose camera ray hit no object.
+pub const NO_OBJECT: u32 = u32::MAX;
+
+/// Primary-hit planes of one frame, row-major with y = 0 the top row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GBuffer {
+    pub width: u32,
+    pub height: u32,
+    /// World shading normal; zero where the camera ray escaped.
+    pub normal: Vec<Vec3>,
+    /// World position of the primary hit.
+    pub position: Vec<Vec3>,
+    /// Albedo of the primary hit (textured); 1 where the ray escaped.
+    pub albedo: Vec<Vec3>,
+    /// Emission seen directly by the camera ray (environment for escaping rays).
+    pub emission: Vec<Vec3>,
+    /// Index into `SceneState::objects`, or [`NO_OBJECT`].
+    pub object: Vec<u32>,
+    /// Scene units per unit of the relative position threshold β (see [`scene_scale`]).
+    pub scene_scale: f32,
+}
+
+impl GBuffer {
+    /// A G-buffer where every camera ray escapes into a black environment.
+    pub fn empty(width: u32, height: u32, scene_scale: f32) -> Self {
+        let n = width as usize * height as usize;
+        Self {
+            width,
+            height,
+            normal: vec![Vec3::ZERO; n],
+            position: vec![Vec3::ZERO; n],
+            albedo: vec![Vec3::ONE; n],
+            emission: vec![Vec3::ZERO; n],
+            object: vec![NO_OBJECT; n],
+            scene_scale,
+        }
+    }
+
+    /// The G-buffer planes of per-pixel samples (pixel order), e.g. from `render_pixels`
+    /// or `primary_hit`.
+    pub fn from_samples(
+        width: u32,
+        height: u32,
+        samples: &[PixelSample],
+        scene_scale: f32,
+    ) -> Self {
+        Self {
+            width,
+            height,
+            normal: samples.iter().map(|s| s.normal).collect(),
+            position: samples.iter().map(|s| s.position).collect(),
+            albedo: samples.iter().map(|s| s.albedo).collect(),
+            emission: samples.iter().map(|s| s.emission).collect(),
+            object: samples.iter().map(|s| s.object).collect(),
+            scene_scale,
+        }
+    }
+
+    /// The CPU G-buffer of a scene state: one primary ray through each pixel centre
+    /// (`render::primary_hit`), rows in parallel.
+    pub fn from_scene(scene: &RenderScene, assets: &Assets) -> Self {
+        let res = scene.state().resolution;
+        let samples: Vec<PixelSample> =
+            (0..res.pixels() as u32).into_par_iter().map(|p| primary_hit(scene, p)).collect();
+        Self::from_samples(res.width, res.height, &samples, scene_scale(scene.state(), assets))
+    }
+
+    /// Number of pixels.
+    pub fn len(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// Whether the image has no pixels.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Checks that every plane has one entry per pixel and the scale is usable.
+    pub fn validate(&self, width: u32, height: u32) -> Result<(), GBufferError> {
+        if (self.width, self.height) != (width, height) {
+            return Err(GBufferError::SizeMismatch {
+                expected: (width, height),
+                got: (self.width, self.height),
+            });
+        }
+        let n = self.len();
+        let planes = [
+            ("normal", self.normal.len()),
+            ("position", self.position.len()),
+            ("albedo", self.albedo.len()),
+            ("emission", self.emission.len()),
+            ("object", self.object.len()),
+        ];
+        for (plane, len) in planes {
+            if len != n {
+                return Err(GBufferError::PlaneLength { plane, expected: n, got: len });
+            }
+        }
+        if !(self.scene_scale.is_finite() && self.scene_scale > 0.0) {
+            return Err(GBufferError::BadScale(self.scene_scale));
+        }
+        Ok(())
+    }
+}
+
+/// The scene's size for the relative position threshold: half the largest extent of the
+/// world-space bounding box of all visible objects (1 for the classic 2-unit Cornell box).
+/// Falls back to 1 for an empty scene.
+pub fn scene_scale(state: &SceneState, assets: &Assets) -> f32 {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for object in state.objects.iter().filter(|o| o.visible) {
+        let builtin;
+        let mesh = match assets.meshes.get(&object.geometry) {
+            Some(mesh) => mesh.as_ref(),
+            None => match crate::shapes::mesh(&object.geometry) {
+                Some(mesh) => {
+                    builtin = mesh;
+                    &builtin
+                }
+                None => continue,
+            },
+        };
+        let matrix = object.transform.matrix();
+        for &p in &mesh.positions {
+            let w = matrix.transform_point3(p);
+            lo = lo.min(w);
+            hi = hi.max(w);
+        }
+    }
+    let extent = (hi - lo).max_element() * 0.5;
+    if extent.is_finite() && extent > 0.0 {
+        extent
+    } else {
+        1.0
+    }
+}
+
+/// Why a G-buffer could not be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum GBufferError {
+    #[error("scene state cannot be drawn: {0}")]
+    Scene(#[from] RenderError),
+    #[error("GPU G-buffer: {0}")]
+    Gpu(#[from] GpuError),
+    #[error("G-buffer is {}×{}, the reconstructor is {}×{}", got.0, got.1, expected.0, expected.1)]
+    SizeMismatch { expected: (u32, u32), got: (u32, u32) },
+    #[error("G-buffer plane `{plane}` has {got} entries, expected {expected}")]
+    PlaneLength { plane: &'static str, expected: usize, got: usize },
+    #[error("scene scale {0} is not a positive number")]
+    BadScale(f32),
+}
+
+/// Both boxed: each holds a whole `RenderScene`.
+enum Engine {
+    Cpu(Box<RenderScene>),
+    Gpu(Box<GpuGBuffer>),
+}
+
+/// The master's G-buffers: one per scene-state version, from the raster pass or the CPU
+/// path (they agree; `tests/gbuffer_parity.rs`), computed only when the version is new.
+pub struct GBufferSource {
+    assets: Arc<Assets>,
+    engine: Engine,
+    /// Why `Auto` ended up on the CPU, if it did.
+    fallback: Option<String>,
+    current: Option<(StateVersion, Arc<GBuffer>)>,
+}
+
+impl GBufferSource {
+    /// Prepares G-buffers of scene states over `assets`, starting from `initial`; `Auto` and
+    /// `Gpu` open the default adapter.
+    pub fn new(
+        assets: Arc<Assets>,
+        initial: &SceneState,
+        backend: Backend,
+    ) -> Result<Self, GBufferError> {
+        let ctx = match backend {
+            Backend::Cpu => Ok(None),
+            Backend::Auto => GpuContext::new_hardware().map(|c| Some(c.shared())),
+            Backend::Gpu => GpuContext::new().map(|c| Some(c.shared())),
+        };
+        match ctx {
+            Ok(ctx) => Self::with_context(assets, initial, backend, ctx),
+            Err(err) if backend == Backend::Auto => {
+                let mut source = Self::with_context(assets, initial, Backend::Cpu, None)?;
+                source.fallback = Some(err.to_string());
+                Ok(source)
+            }
+            Err(err) => Err(err.into()),
+        }
+    }
+
+    /// Like [`Self::new`] on a device that is already open (the reconstructor's), or on
+    /// none (`ctx` `None`: `Auto` means the CPU path, `Gpu` is an error).
+    pub fn with_context(
+        assets: Arc<Assets>,
+        initial: &SceneState,
+        backend: Backend,
+        ctx: Option<Arc<GpuContext>>,
+    ) -> Result<Self, GBufferError> {
+        let cpu = |assets: &Arc<Assets>| -> Result<Engine, GBufferError> {
+            Ok(Engine::Cpu(Box::new(RenderScene::new(Arc::clone(assets), initial)?)))
+        };
+        let (engine, fallback) = match (backend, ctx) {
+            (Backend::Cpu, _) => (cpu(&assets)?, None),
+            (Backend::Auto, None) => (cpu(&assets)?, Some("no GPU context".to_string())),
+            (Backend::Gpu, None) => {
+                return Err(GpuError::NoAdapter("no GPU context was given".into()).into())
+            }
+            (backend, Some(ctx)) => match GpuGBuffer::new(ctx, Arc::clone(&assets), initial) {
+                Ok(gpu) => (Engine::Gpu(Box::new(gpu)), None),
+                Err(GBufferError::Gpu(err)) if backend == Backend::Auto => {
+                    (cpu(&assets)?, Some(err.to_string()))
+                }
+                Err(err) => return Err(err),
+            },
+        };
+        if let Some(why) = &fallback {
+            tracing::info!(why = %why, "G-buffer on the CPU");
+        }
+        Ok(Self { assets, engine, fallback, current: None })
+    }
+
+    /// Whether G-buffers come from the raster pass.
+    pub fn is_gpu(&self) -> bool {
+        matches!(self.engine, Engine::Gpu(_))
+    }
+
+    /// The render scene of the last state asked for (picking uses the same BVH).
+    pub fn scene(&self) -> &RenderScene {
+        match &self.engine {
+            Engine::Cpu(scene) => scene,
+            Engine::Gpu(gpu) => gpu.scene(),
+        }
+    }
+
+    /// Why `Auto` chose the CPU path, if it did.
+    pub fn fallback_reason(&self) -> Option<&str> {
+        self.fallback.as_deref()
+    }
+
+    /// Makes `g`, `state`'s G-buffer computed elsewhere (`ahead`), the
+    /// current one, and the render scene `state`'s, as [`Self::get`] would have.
+    pub fn adopt(
+        &mut self,
+        state: &SceneState,
+        g: Arc<GBuffer>,
+    ) -> Result<Arc<GBuffer>, GBufferError> {
+        match &mut self.engine {
+            Engine::Gpu(gpu) => gpu.set_state(state)?,
+            Engine::Cpu(scene) if scene.state().version != state.version => {
+                scene.set_state(state)?
+            }
+            Engine::Cpu(_) => {}
+        }
+        self.current = Some((state.version, Arc::clone(&g)));
+        Ok(g)
+    }
+
+    /// The G-buffer of `state`, computed only when its version is new.
+    pub fn get(&mut self, state: &SceneState) -> Result<Arc<GBuffer>, GBufferError> {
+        if let Some((version, g)) = &self.current {
+            if *version == state.version {
+                return Ok(Arc::clone(g));
+            }
+        }
+        let g = match &mut self.engine {
+            Engine::Gpu(gpu) => gpu.compute(state)?,
+            Engine::Cpu(scene) => {
+                if scene.state().version != state.version {
+                    scene.set_state(state)?;
+                }
+                GBuffer::from_scene(scene, &self.assets)
+            }
+        };
+        let g = Arc::new(g);
+        self.current = Some((state.version, Arc::clone(&g)));
+        Ok(g)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validate_names_the_short_plane() {
+        let mut g = GBuffer::empty(4, 3, 1.0);
+        g.validate(4, 3).expect("consistent");
+        g.albedo.pop();
+        let err = g.validate(4, 3).expect_err("short plane").to_string();
+        assert!(err.contains("albedo"), "{err}");
+        let err = GBuffer::empty(4, 3, 1.0).validate(5, 3).expect_err("size").to_string();
+        assert!(err.contains("4×3"), "{err}");
+    }
+}

@@ -1,0 +1,166 @@
+//! Two-level ray acceleration: one bottom-level BVH per mesh, a top-level BVH over
+//! the placed instances.
+//!
+//! Both levels are obvhs compressed wide BVHs (CWBVH, eight children per node,
+//! SIMD node tests). A mesh's BLAS is built once and shared by every instance of
+//! it; a new scene state only rebuilds the small TLAS, so moving an object never
+//! touches its triangles. Triangles are stored in BVH leaf order as a base vertex
+//! and two edges (Möller–Trumbore needs nothing else), which keeps the hot loop on
+//! contiguous memory; shading data is fetched once per closest hit.
+//!
+//! Instances of small meshes (at most [`FLAT_MAX_TRIANGLES`], such as the walls
+//! and boxes of a Cornell box) are not traversed through their own BLAS: per
+//! scene state their triangles are copied to world space into one shared BVH.
+//! Entering an instance costs a ray transform, a traversal set-up and a root node
+//! test, far more than testing a handful of triangles, and rebuilding a few
+//! hundred world-space triangles per state costs about as little as the TLAS
+//! itself. Large meshes keep the two-level path, so moving them stays cheap.
+
+//!
+//! Files: `triangle.rs` (the triangle test), `blas.rs` (per mesh), `tlas.rs` (per scene
+//! state), `traverse.rs` (the node test and traversal restart both levels use).
+
+mod blas;
+mod tlas;
+mod traverse;
+mod triangle;
+
+pub use blas::{validate_mesh, Blas, MeshError};
+pub use tlas::{Hit, Instance, Tlas, FLAT_MAX_TRIANGLES};
+pub use triangle::{LeafTri, TriEdges};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes;
+    use std::sync::Arc;
+
+    use glam::{Affine3A, Quat, Vec3};
+
+    /// Tiny deterministic generator for test inputs only (not used for rendering).
+    fn lcg(state: &mut u64) -> f32 {
+        *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (*state >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    fn brute_force(instances: &[Instance], o: Vec3, d: Vec3) -> Option<(f32, u32)> {
+        let mut best: Option<(f32, u32)> = None;
+        for inst in instances {
+            let lo = inst.world_to_object.transform_point3a(o.into());
+            let ld = inst.world_to_object.transform_vector3a(d.into());
+            for (i, t) in inst.blas.tris.iter().enumerate() {
+                let tmax = best.map_or(f32::INFINITY, |b| b.0);
+                if let Some((t, ..)) = t.intersect(lo, ld, 0.0, tmax) {
+                    best = Some((t, inst.object * 1_000_000 + inst.blas.leaf(i as u32).original));
+                }
+            }
+        }
+        best
+    }
+
+    /// Random rays through the scene must find what brute force finds.
+    fn check_against_brute_force(instances: Vec<Instance>, rng: &mut u64) {
+        let tlas = Tlas::build(instances.clone());
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let o = Vec3::new(lcg(rng) - 0.5, lcg(rng) - 0.5, lcg(rng) - 0.5) * 12.0;
+            let target = (Vec3::new(lcg(rng), lcg(rng), lcg(rng)) - 0.5) * 6.0;
+            let d = (target - o).normalize();
+            let expected = brute_force(&instances, o, d);
+            let got = tlas.intersect(o, d, f32::INFINITY).map(|h| {
+                let inst = &tlas.instances[h.instance as usize];
+                (h.t, inst.object * 1_000_000 + inst.blas.leaf(h.prim).original)
+            });
+            match (expected, got) {
+                (None, None) => {}
+                (Some(e), Some(g)) => {
+                    hits += 1;
+                    assert!((e.0 - g.0).abs() < 1e-4 * e.0.max(1.0), "t {} vs {}", e.0, g.0);
+                    assert!(tlas.occluded(o, d, e.0 * 1.001));
+                    assert!(!tlas.occluded(o, d, e.0 * 0.999));
+                }
+                other => panic!("brute force and BVH disagree: {other:?}"),
+            }
+        }
+        assert!(hits > 300, "too few hits ({hits}) to test anything");
+    }
+
+    fn random_transform(rng: &mut u64) -> Affine3A {
+        let t = Vec3::new(lcg(rng) * 6.0 - 3.0, lcg(rng) * 6.0 - 3.0, lcg(rng) * 6.0 - 3.0);
+        let r = Quat::from_euler(glam::EulerRot::XYZ, lcg(rng) * 3.0, lcg(rng), 0.5);
+        let s = Vec3::new(0.3 + lcg(rng), 0.3 + lcg(rng), 0.3 + lcg(rng));
+        Affine3A::from_scale_rotation_translation(s, r, t)
+    }
+
+    #[test]
+    fn bvh_hits_match_brute_force() {
+        let sphere = Arc::new(Blas::build(Arc::new(shapes::sphere(3))).unwrap());
+        let cube = Arc::new(Blas::build(Arc::new(shapes::cube())).unwrap());
+        // Spheres go through their own BLAS, cubes into the flattened world-space BVH.
+        assert!(sphere.triangle_count() > FLAT_MAX_TRIANGLES);
+        assert!(cube.triangle_count() <= FLAT_MAX_TRIANGLES);
+        let mut rng = 12345u64;
+        let mut instances = Vec::new();
+        for object in 0..12u32 {
+            let blas = if object % 3 == 0 { cube.clone() } else { sphere.clone() };
+            instances.push(Instance::new(blas, random_transform(&mut rng), object, 0));
+        }
+        check_against_brute_force(instances, &mut rng);
+        // A single large instance skips the top level; a lone small one is flat only.
+        for blas in [sphere, cube] {
+            let m = Affine3A::from_scale_rotation_translation(
+                Vec3::new(2.5, 2.0, 3.0),
+                Quat::from_euler(glam::EulerRot::XYZ, 0.3, 0.7, 0.2),
+                Vec3::new(0.2, -0.1, 0.3),
+            );
+            check_against_brute_force(vec![Instance::new(blas, m, 0, 0)], &mut rng);
+        }
+    }
+
+    #[test]
+    fn flat_shading_is_detected_per_triangle() {
+        let cube = Blas::build(Arc::new(shapes::cube())).unwrap();
+        assert!((0..cube.triangle_count() as u32).all(|p| cube.leaf(p).flat));
+        let sphere = Blas::build(Arc::new(shapes::sphere(2))).unwrap();
+        assert!((0..sphere.triangle_count() as u32).all(|p| !sphere.leaf(p).flat));
+        // Normals all facing away are flat too (shading flips them); a mix is not.
+        let mut mesh = shapes::quad();
+        mesh.normals.iter_mut().for_each(|n| *n = -*n);
+        let flipped = Blas::build(Arc::new(mesh.clone())).unwrap();
+        assert!((0..2).all(|p| flipped.leaf(p).flat));
+        mesh.normals[mesh.indices[0][1] as usize] *= -1.0;
+        let mixed = Blas::build(Arc::new(mesh)).unwrap();
+        assert!((0..2).any(|p| !mixed.leaf(p).flat));
+        // Without vertex normals every triangle is flat.
+        let mut bare = shapes::quad();
+        bare.normals.clear();
+        let bare = Blas::build(Arc::new(bare)).unwrap();
+        assert!((0..2).all(|p| bare.leaf(p).flat));
+    }
+
+    #[test]
+    fn single_instance_single_triangle_scene_works() {
+        let mut mesh = shapes::quad();
+        mesh.indices.truncate(1);
+        mesh.slots.truncate(1);
+        let blas = Arc::new(Blas::build(Arc::new(mesh)).unwrap());
+        let tlas = Tlas::build(vec![Instance::new(blas, Affine3A::IDENTITY, 0, 0)]);
+        let hit = tlas.intersect(Vec3::new(0.1, 1.0, 0.1), Vec3::NEG_Y, f32::INFINITY);
+        let miss = tlas.intersect(Vec3::new(-0.1, 1.0, -0.1), Vec3::NEG_Y, f32::INFINITY);
+        // The first triangle of the quad covers one half of the square.
+        assert!(hit.is_some() != miss.is_some());
+    }
+
+    #[test]
+    fn bad_meshes_are_rejected() {
+        let mut mesh = shapes::quad();
+        mesh.indices[1][2] = 99;
+        assert!(matches!(
+            validate_mesh(&mesh),
+            Err(MeshError::VertexOutOfRange { vertex: 99, .. })
+        ));
+        let mut mesh = shapes::quad();
+        mesh.slots[0] = 3;
+        assert!(matches!(validate_mesh(&mesh), Err(MeshError::SlotOutOfRange { slot: 3, .. })));
+    }
+}

@@ -1,0 +1,259 @@
+//! The top level: the placed instances of one scene state, small ones flattened into one
+//! world-space BVH, large ones entered through their BLAS.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use glam::{Affine3A, Mat3A, UVec2, Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::builder::build_cwbvh;
+use obvhs::cwbvh::{CwBvh, Traversal};
+use obvhs::ray::Ray;
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
+
+use super::blas::{build_tri_bvh, Blas};
+use super::traverse::{intersect_node, restart};
+use super::triangle::TriEdges;
+
+/// One placed instance of a BLAS.
+#[derive(Clone)]
+pub struct Instance {
+    pub blas: Arc<Blas>,
+    pub object_to_world: Affine3A,
+    pub world_to_object: Affine3A,
+    /// Inverse transpose of the linear part, for normals.
+    pub normal_to_world: Mat3A,
+    /// Index into `SceneState::objects`.
+    pub object: u32,
+    /// Offset of this instance's slot-to-material table in the scene's table.
+    pub material_base: u32,
+}
+
+impl Instance {
+    pub fn new(
+        blas: Arc<Blas>,
+        object_to_world: Affine3A,
+        object: u32,
+        material_base: u32,
+    ) -> Self {
+        let world_to_object = object_to_world.inverse();
+        let normal_to_world = world_to_object.matrix3.transpose();
+        Self { blas, object_to_world, world_to_object, normal_to_world, object, material_base }
+    }
+
+    pub(super) fn world_bounds(&self) -> Aabb {
+        let b = &self.blas.bounds;
+        let mut out = Aabb::empty();
+        for i in 0..8 {
+            let corner = Vec3A::new(
+                if i & 1 == 0 { b.min.x } else { b.max.x },
+                if i & 2 == 0 { b.min.y } else { b.max.y },
+                if i & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            out.extend(self.object_to_world.transform_point3a(corner));
+        }
+        out
+    }
+}
+
+/// The closest intersection found by [`Tlas::intersect`].
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    pub t: f32,
+    pub instance: u32,
+    /// Leaf-order triangle index within the instance's BLAS.
+    pub prim: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// Instances whose mesh has at most this many triangles are flattened into the
+/// per-state world-space BVH instead of being entered through their BLAS.
+pub const FLAT_MAX_TRIANGLES: usize = 256;
+
+/// The world-space triangles of every small instance, in one BVH.
+#[derive(Default)]
+pub(super) struct FlatGeometry {
+    pub(super) bvh: CwBvh,
+    /// Triangles in BVH leaf order, in world space.
+    pub(super) tris: Vec<TriEdges>,
+    /// Per leaf-order triangle: (instance index, leaf-order triangle in its BLAS).
+    pub(super) owner: Vec<(u32, u32)>,
+}
+
+impl FlatGeometry {
+    pub(super) fn build(instances: &[Instance], flat: &[u32]) -> Self {
+        let mut tris = Vec::new();
+        let mut owner = Vec::new();
+        for &i in flat {
+            let inst = &instances[i as usize];
+            let m = &inst.object_to_world;
+            for (prim, t) in inst.blas.tris.iter().enumerate() {
+                let v0 = m.transform_point3a(t.v0);
+                // Same vertex order, so barycentrics keep their meaning; an affine map
+                // also keeps the ray parameter t.
+                let v1 = m.transform_point3a(t.v0 + t.e1);
+                let v2 = m.transform_point3a(t.v0 + t.e2);
+                tris.push(Triangle { v0, v1, v2 });
+                owner.push((i, prim as u32));
+            }
+        }
+        // At most a few hundred triangles per instance: the best (slowest) build
+        // is cheap, and every ray of the state traverses it.
+        let (bvh, order) = build_tri_bvh(&tris, BvhBuildParams::very_slow_build());
+        let tris = order
+            .iter()
+            .map(|&k| {
+                let t = &tris[k as usize];
+                TriEdges::new(t.v0, t.v1, t.v2)
+            })
+            .collect();
+        let owner = order.iter().map(|&k| owner[k as usize]).collect();
+        Self { bvh, tris, owner }
+    }
+}
+
+/// Top-level BVH over the instances of one scene state.
+pub struct Tlas {
+    /// Over the large instances (`large`, in leaf order).
+    pub(super) bvh: CwBvh,
+    pub(super) large: Vec<u32>,
+    pub(super) flat: FlatGeometry,
+    /// Every instance with triangles; [`Hit::instance`] indexes this.
+    pub instances: Vec<Instance>,
+}
+
+impl Tlas {
+    /// Builds the TLAS; instances with no triangles are dropped.
+    pub fn build(instances: Vec<Instance>) -> Self {
+        let instances: Vec<Instance> =
+            instances.into_iter().filter(|i| i.blas.triangle_count() > 0).collect();
+        let (flat, large): (Vec<u32>, Vec<u32>) = (0..instances.len() as u32)
+            .partition(|&i| instances[i as usize].blas.triangle_count() <= FLAT_MAX_TRIANGLES);
+        let flat = FlatGeometry::build(&instances, &flat);
+        if large.is_empty() {
+            return Self { bvh: CwBvh::default(), large, flat, instances };
+        }
+        let aabbs: Vec<Aabb> =
+            large.iter().map(|&i| instances[i as usize].world_bounds()).collect();
+        let bvh = build_cwbvh(&aabbs, BvhBuildParams::medium_build(), &mut Duration::default());
+        let large = bvh.primitive_indices.iter().map(|&k| large[k as usize]).collect();
+        Self { bvh, large, flat, instances }
+    }
+
+    /// Closest hit along `origin + t * dir` for t in (0, tmax).
+    #[inline(always)]
+    pub fn intersect(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
+        let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
+        let mut state = Traversal::default();
+        if !self.flat.tris.is_empty() {
+            let flat = &self.flat;
+            let mut ray = Ray::new(origin, dir, 0.0, tmax);
+            restart(&mut state, &flat.bvh, dir);
+            let mut node;
+            obvhs::traverse!(flat.bvh, node, state, intersect_node(node, &ray, state.oct_inv4), {
+                let prim = state.primitive_id;
+                if let Some((t, u, v)) =
+                    flat.tris[prim as usize].intersect(origin, dir, 0.0, ray.tmax)
+                {
+                    ray.tmax = t;
+                    let (instance, prim) = flat.owner[prim as usize];
+                    best = Hit { t, instance, prim, u, v };
+                }
+            });
+        }
+        if self.large.is_empty() {
+            return (best.instance != u32::MAX).then_some(best);
+        }
+        let mut inner = Traversal::default();
+        let mut instance_hit = |index: u32, best: &mut Hit| {
+            let inst = &self.instances[index as usize];
+            let o = inst.world_to_object.transform_point3a(origin);
+            let d = inst.world_to_object.transform_vector3a(dir);
+            let blas = &*inst.blas;
+            let mut ray = Ray::new(o, d, 0.0, best.t);
+            restart(&mut inner, &blas.bvh, d);
+            let mut node;
+            obvhs::traverse!(blas.bvh, node, inner, intersect_node(node, &ray, inner.oct_inv4), {
+                let prim = inner.primitive_id;
+                if let Some((t, u, v)) = blas.tris[prim as usize].intersect(o, d, 0.0, ray.tmax) {
+                    ray.tmax = t;
+                    *best = Hit { t, instance: index, prim, u, v };
+                }
+            });
+        };
+        if let [only] = self.large[..] {
+            // One large instance: its BLAS root bounds it already.
+            instance_hit(only, &mut best);
+        } else {
+            let mut world = Ray::new(origin, dir, 0.0, best.t);
+            restart(&mut state, &self.bvh, dir);
+            let mut node;
+            obvhs::traverse!(
+                self.bvh,
+                node,
+                state,
+                intersect_node(node, &world, state.oct_inv4),
+                {
+                    instance_hit(self.large[state.primitive_id as usize], &mut best);
+                    world.tmax = best.t;
+                }
+            );
+        }
+        (best.instance != u32::MAX).then_some(best)
+    }
+
+    /// Whether anything blocks `origin + t * dir` for t in (0, tmax).
+    #[inline(always)]
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
+        let mut state = Traversal::default();
+        if !self.flat.tris.is_empty() {
+            let flat = &self.flat;
+            let ray = Ray::new(origin, dir, 0.0, tmax);
+            restart(&mut state, &flat.bvh, dir);
+            let mut node;
+            obvhs::traverse!(flat.bvh, node, state, intersect_node(node, &ray, state.oct_inv4), {
+                if flat.tris[state.primitive_id as usize]
+                    .intersect(origin, dir, 0.0, tmax)
+                    .is_some()
+                {
+                    return true;
+                }
+            });
+        }
+        if self.large.is_empty() {
+            return false;
+        }
+        let mut inner = Traversal::default();
+        let mut instance_blocks = |index: u32| {
+            let inst = &self.instances[index as usize];
+            let o = inst.world_to_object.transform_point3a(origin);
+            let d = inst.world_to_object.transform_vector3a(dir);
+            let blas = &*inst.blas;
+            let ray = Ray::new(o, d, 0.0, tmax);
+            restart(&mut inner, &blas.bvh, d);
+            let mut node;
+            obvhs::traverse!(blas.bvh, node, inner, intersect_node(node, &ray, inner.oct_inv4), {
+                if blas.tris[inner.primitive_id as usize].intersect(o, d, 0.0, tmax).is_some() {
+                    return true;
+                }
+            });
+            false
+        };
+        if let [only] = self.large[..] {
+            return instance_blocks(only);
+        }
+        let world = Ray::new(origin, dir, 0.0, tmax);
+        restart(&mut state, &self.bvh, dir);
+        let mut node;
+        obvhs::traverse!(self.bvh, node, state, intersect_node(node, &world, state.oct_inv4), {
+            if instance_blocks(self.large[state.primitive_id as usize]) {
+                return true;
+            }
+        });
+        false
+    }
+}

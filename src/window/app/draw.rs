@@ -1,0 +1,213 @@
+//! Drawing the window: the newest composed frame, the panel and status, and what the
+//! panel asks for (actions, screenshots, the layout probe of the tests).
+
+// The application's imports and types (a split of one file, not a separate concern).
+use super::*;
+
+impl App {
+    pub(super) fn screenshot(&mut self) {
+        self.message = match &self.shown {
+            Some(shown) => match crate::window::screenshot::save(
+                &self.options.shot_dir,
+                shown,
+                self.settings.shot_format,
+            ) {
+                Ok(path) => format!("wrote {}", path.display()),
+                Err(err) => format!("screenshot failed: {err}"),
+            },
+            None => "no frame to save yet".into(),
+        };
+        tracing::info!(message = %self.message, "screenshot");
+    }
+
+    pub(super) fn apply_actions(&mut self, actions: Vec<PanelAction>) {
+        for action in actions {
+            match action {
+                PanelAction::Edit(edit) => self.edit(edit),
+                PanelAction::Pacing(pacing) => self.session.set_pacing(pacing),
+                PanelAction::ResetCamera => self.edit(SceneEdit::Camera(self.controller.reset())),
+                PanelAction::Deselect => self.selected = None,
+                PanelAction::Screenshot => self.screenshot(),
+                PanelAction::SaveScript => {
+                    self.message = match self.session.save_script(self.recorder.entries()) {
+                        Ok(path) => format!("wrote {}", path.display()),
+                        Err(err) => format!("saving the script failed: {err}"),
+                    }
+                }
+            }
+        }
+        self.recorder.set_recording(self.settings.recording, Instant::now());
+    }
+
+    /// Writes the panel's layout to `$GRIDLIGHT_PANEL_PROBE` (JSON) when set: how the
+    /// window tests check that every section can be reached and nothing is cut off,
+    /// at whatever size the window got.
+    pub(super) fn probe_panel(&self, layout: panel::PanelLayout, s: &Surface) {
+        let Some(path) = std::env::var_os(PANEL_PROBE_ENV) else { return };
+        let size = s.window.inner_size();
+        let probe = serde_json::json!({
+            "window": [size.width, size.height],
+            "last_section_visible": layout.last_section_visible(),
+            "clipped_horizontally": layout.clipped_horizontally(),
+            "layout": layout,
+        });
+        // Written whole, then renamed, so a reader never sees half a file.
+        let tmp = std::path::PathBuf::from(&path).with_extension("tmp");
+        if std::fs::write(&tmp, probe.to_string())
+            .and_then(|()| std::fs::rename(&tmp, &path))
+            .is_err()
+        {
+            tracing::warn!("cannot write the panel probe");
+        }
+    }
+
+    pub(super) fn redraw(&mut self) {
+        self.fly_step();
+        let now = Instant::now();
+        for (edit, at) in self.edits.drain() {
+            self.recorder.record(&edit, now);
+            self.session.edit(edit, at);
+        }
+        self.session.set_view(self.settings.view);
+        if let Some(frame) = self.frames.take() {
+            let now = Instant::now();
+            self.fps.tick(now);
+            // The edits this frame shows first (with those of frames replaced before the
+            // window took one) end their latency when it is presented (`draw`).
+            self.edits_unpresented.extend_from_slice(&frame.status.edits_at);
+            self.status = StatusView {
+                fps: self.fps.fps(),
+                frames_replaced: self.frames.replaced(),
+                adapter: std::mem::take(&mut self.status.adapter),
+                edit_latency_ms: self.latency.summary(),
+                ..frame.status.clone()
+            };
+            if let Some(s) = &mut self.surface {
+                s.blit.upload(&s.gpu.device, &s.gpu.queue, &frame.picture);
+            }
+            self.shown = Some(frame);
+        }
+        self.session.refresh_status(&mut self.status);
+        let Some(mut s) = self.surface.take() else { return };
+        let actions = self.draw(&mut s);
+        self.surface = Some(s);
+        self.apply_actions(actions);
+        if self.keys.any() || !self.edits.is_empty() {
+            self.request_redraw();
+        }
+    }
+
+    /// The picture of the newest frame was just presented: the edit-to-display latency of
+    /// the edits it shows first ends now (a headless master's ends when it composed the
+    /// frame: there is nothing more to present).
+    fn end_edit_latencies(&mut self) {
+        if self.edits_unpresented.is_empty() {
+            return;
+        }
+        let now = Instant::now();
+        for at in self.edits_unpresented.drain(..) {
+            self.latency.record(now.saturating_duration_since(at).as_secs_f32() * 1e3);
+        }
+        self.status.edit_latency_ms = self.latency.summary();
+    }
+
+    pub(super) fn draw(&mut self, s: &mut Surface) -> Vec<PanelAction> {
+        let raw_input = s.egui_state.take_egui_input(&s.window);
+        let mut actions = Vec::new();
+        let model = PanelModel {
+            scene: &self.scene,
+            selected: self.selected,
+            status: &self.status,
+            environment_maps: &self.options.environment_maps,
+            recorded: self.recorder.entries().len(),
+            message: &self.message,
+        };
+        let settings = &mut self.settings;
+        let mut panel_layout = panel::PanelLayout::default();
+        let output = self.egui.run_ui(raw_input, |ui| {
+            (actions, panel_layout) = panel::show(ui, &model, settings);
+        });
+        self.probe_panel(panel_layout, s);
+        s.egui_state.handle_platform_output(&s.window, output.platform_output);
+        let ppp = output.pixels_per_point;
+        let (width, height) = (s.gpu.config.width, s.gpu.config.height);
+        // The panel has a fixed width; the picture gets the rest of the window.
+        let picture_width = (width as f32 - panel::PANEL_WIDTH * ppp).max(0.0);
+        let area = Rect { x: 0.0, y: 0.0, width: picture_width, height: height as f32 };
+        let res = self.scene.resolution;
+        self.picture_rect = layout::fit(area, res.width, res.height);
+
+        // egui's texture changes must be applied even when this frame is not drawn.
+        for (id, deltas) in &output.textures_delta.set {
+            for delta in deltas {
+                s.egui_renderer.update_texture(&s.gpu.device, &s.gpu.queue, *id, delta);
+            }
+        }
+        let mut textures_delta = output.textures_delta;
+        textures_delta.set.clear();
+        let free = std::mem::take(&mut textures_delta.free);
+        let Acquired::Frame(frame) = s.gpu.acquire() else {
+            free.iter().for_each(|id| s.egui_renderer.free_texture(id));
+            self.request_redraw();
+            return actions;
+        };
+        let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let paint_jobs = self.egui.tessellate(output.shapes, ppp);
+        let screen =
+            egui_wgpu::ScreenDescriptor { size_in_pixels: [width, height], pixels_per_point: ppp };
+        let mut encoder = s
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("window") });
+        let extra = s.egui_renderer.update_buffers(
+            &s.gpu.device,
+            &s.gpu.queue,
+            &mut encoder,
+            &paint_jobs,
+            &screen,
+        );
+        {
+            let mut pass = encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("window"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &view,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: 0.02,
+                                g: 0.02,
+                                b: 0.02,
+                                a: 1.0,
+                            }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                        depth_slice: None,
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                })
+                .forget_lifetime();
+            if let Some(rect) = self.picture_rect {
+                s.blit.encode(&mut pass, rect);
+            }
+            pass.set_viewport(0.0, 0.0, width as f32, height as f32, 0.0, 1.0);
+            s.egui_renderer.render(&mut pass, &paint_jobs, &screen);
+        }
+        s.gpu.queue.submit(extra.into_iter().chain([encoder.finish()]));
+        s.window.pre_present_notify();
+        s.gpu.queue.present(frame);
+        self.end_edit_latencies();
+        free.iter().for_each(|id| s.egui_renderer.free_texture(id));
+        let repaint_soon = output
+            .viewport_output
+            .get(&egui::ViewportId::ROOT)
+            .is_some_and(|v| v.repaint_delay < Duration::from_millis(100));
+        if repaint_soon {
+            s.window.request_redraw();
+        }
+        actions
+    }
+}
