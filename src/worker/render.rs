@@ -108,7 +108,7 @@ enum Inner {
         conn: Box<crate::simgrid::SimConnection>,
         table: Arc<gridlight_actors::sets::SetTable>,
         key: ResultKey,
-        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     },
 }
 
