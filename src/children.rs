@@ -105,6 +105,7 @@ mod tests {
 
     fn alive(pid: u32) -> bool {
         // Signal 0 checks for existence; a reaped child no longer exists.
+        // SAFETY: kill with signal 0 sends nothing; it only checks the pid.
         unsafe { libc::kill(pid as i32, 0) == 0 }
     }
 

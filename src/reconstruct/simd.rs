@@ -130,11 +130,13 @@ mod avx2 {
 
         #[inline(always)]
         fn splat(v: f32) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_set1_ps(v) }
         }
 
         #[inline(always)]
         fn load(a: &[f32; LANES]) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_loadu_ps(a.as_ptr()) }
         }
 
@@ -147,42 +149,50 @@ mod avx2 {
 
         #[inline(always)]
         fn store(v: __m256, a: &mut [f32; LANES]) {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_storeu_ps(a.as_mut_ptr(), v) }
         }
 
         #[inline(always)]
         fn add(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_add_ps(a, b) }
         }
 
         #[inline(always)]
         fn sub(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_sub_ps(a, b) }
         }
 
         #[inline(always)]
         fn mul(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_mul_ps(a, b) }
         }
 
         #[inline(always)]
         fn div(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_div_ps(a, b) }
         }
 
         #[inline(always)]
         fn positive_part(a: __m256) -> __m256 {
             // maxps returns its second operand where either is NaN (or both are zero).
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_max_ps(a, _mm256_setzero_ps()) }
         }
 
         #[inline(always)]
         fn and(a: __m256, mask: __m256) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe { _mm256_and_ps(a, mask) }
         }
 
         #[inline(always)]
         fn if_positive(c: __m256, a: __m256, b: __m256) -> __m256 {
+            // SAFETY: an AVX2 intrinsic; `Avx2` kernels run only where the CPU has AVX2.
             unsafe {
                 let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(c, _mm256_setzero_ps());
                 _mm256_blendv_ps(b, a, positive)
@@ -539,7 +549,12 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     fn avx2_ops_match_portable() {
         if !std::is_x86_feature_detected!("avx2") {
-            println!("skipped: the CPU has no AVX2");
+            let why = "is_x86_feature_detected!(\"avx2\") is false";
+            crate::testing::skip(
+                "avx2_ops_match_portable",
+                crate::testing::Missing::CpuFeature,
+                why,
+            );
             return;
         }
         // SAFETY: the CPU has AVX2.

@@ -500,7 +500,12 @@ mod tests {
     #[test]
     fn v3_kernel_matches_the_baseline_bit_for_bit() {
         if !v3::available() {
-            eprintln!("skipped: this CPU lacks x86-64-v3, so only the baseline kernel runs");
+            let why = "the CPU lacks x86-64-v3, so only the baseline kernel runs";
+            crate::testing::skip(
+                "v3_kernel_matches_the_baseline",
+                crate::testing::Missing::CpuFeature,
+                why,
+            );
             return;
         }
         let kinds = [

@@ -102,6 +102,7 @@ mod tests {
     /// The calling thread's scheduling policy.
     #[cfg(target_os = "linux")]
     fn policy() -> i32 {
+        // SAFETY: sched_getscheduler(0) only reads the calling thread's policy.
         unsafe { libc::sched_getscheduler(0) }
     }
 

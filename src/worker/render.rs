@@ -6,8 +6,12 @@
 //! scene state (`RenderScene::set_state`) when a job names a version it has not rendered
 //! with yet, derives the job's pixels from the set number (pixel indices never travel),
 //! renders them, packs the reflected radiance (not demodulated: the master divides by its
-//! own G-buffer's albedo, `crate::compose`) as RGB9E5 and tags the result with the
+//! own G-buffer's albedo, `crate::master::compose`) as RGB9E5 and tags the result with the
 //! connection's key (`gridlight_actors::integrity`).
+//!
+//! A job whose state is older than the newest one submitted is not rendered but answered
+//! [`Answer::Superseded`] (a newer view came while it waited: its pixels would be stale,
+//! and the new view's job would wait behind it); the session tells the master.
 //!
 //! The thread lowers its own priority first (`priority`: `SCHED_IDLE` by default), so
 //! that the desk's owner never waits for it. When the worker pauses, jobs still queued
@@ -16,7 +20,9 @@
 //!
 //! The null renderer (`--null-render`, for `gridlight bench master`) answers every job
 //! with constant radiance at no cost, so a benchmark measures the master alone; without
-//! a simulated delay it answers on the connection's task, with no thread at all.
+//! a simulated delay it answers on the connection's task, with no thread at all. The
+//! simulated renderer (`gridlight simgrid`, `crate::simgrid::renderer`) answers with cached
+//! real pixels after a modelled render time, on a timer rather than a thread.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc as std_mpsc;
@@ -45,13 +51,15 @@ pub fn null_radiance(frame: FrameNo) -> Vec3 {
 }
 
 /// Which renderer a worker runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub enum RendererKind {
     /// The path tracer (`crate::render`).
     PathTracer,
     /// Constant radiance ([`null_radiance`]) for benchmarking the master; `delay_ms`
     /// simulates render time for fault-injection tests (0 in benchmarks).
     Null { delay_ms: u32 },
+    /// Cached path-traced pixels after a modelled render time (`crate::simgrid`).
+    Simulated(Arc<crate::simgrid::SimGrid>),
 }
 
 /// One job with the scene state it names.
@@ -60,6 +68,17 @@ pub struct RenderJob {
     pub frame: FrameNo,
     pub set: SetNo,
     pub state: Arc<SceneState>,
+}
+
+/// What the renderer says about one job.
+#[derive(Debug)]
+pub enum Answer {
+    Rendered(JobResult),
+    /// Not rendered: a job of a newer scene state was submitted before it started.
+    Superseded {
+        frame: FrameNo,
+        set: SetNo,
+    },
 }
 
 /// Handle to a connection's renderer: its render thread, or the null renderer itself.
@@ -74,11 +93,22 @@ pub struct RenderThread {
 }
 
 enum Inner {
-    /// Jobs go with the epoch they were queued in; the thread skips stale ones.
-    Thread { jobs: std_mpsc::Sender<(u64, RenderJob)>, epoch: Arc<AtomicU64> },
+    /// Jobs go with the epoch they were queued in; the thread skips stale ones, and
+    /// answers those older than `newest` (the newest state version submitted) superseded.
+    Thread {
+        jobs: std_mpsc::Sender<(u64, RenderJob)>,
+        epoch: Arc<AtomicU64>,
+        newest: Arc<AtomicU64>,
+    },
     Inline {
         renderer: Box<Renderer>,
-        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
+    },
+    Simulated {
+        conn: Box<crate::simgrid::SimConnection>,
+        table: Arc<gridlight_actors::sets::SetTable>,
+        key: ResultKey,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     },
 }
 
@@ -93,16 +123,29 @@ impl RenderThread {
         shared: Arc<Shared>,
         sets: SetsConfig,
         key: ResultKey,
-        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     ) -> Result<Self, WorkerError> {
+        if let RendererKind::Simulated(grid) = &kind {
+            let res = grid.cache().resolution();
+            let table = shared
+                .set_table(res, sets)
+                .map_err(|e| WorkerError::Protocol(format!("the master's sets: {e}")))?;
+            let seed =
+                name.bytes().fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b)));
+            let conn = Box::new(crate::simgrid::SimConnection::new(Arc::clone(grid), seed));
+            return Ok(Self { inner: Inner::Simulated { conn, table, key, results } });
+        }
+        let inline = matches!(kind, RendererKind::Null { delay_ms: 0 });
         let mut renderer =
             Renderer { kind, view, shared, sets, key, scene: None, samples: Vec::new() };
-        if kind == (RendererKind::Null { delay_ms: 0 }) {
+        if inline {
             return Ok(Self { inner: Inner::Inline { renderer: Box::new(renderer), results } });
         }
         let (jobs, rx) = std_mpsc::channel::<(u64, RenderJob)>();
         let epoch = Arc::new(AtomicU64::new(0));
         let current = Arc::clone(&epoch);
+        let newest = Arc::new(AtomicU64::new(0));
+        let newest_seen = Arc::clone(&newest);
         std::thread::Builder::new()
             .name(format!("render {name}"))
             .spawn(move || {
@@ -114,31 +157,56 @@ impl RenderThread {
                     if queued_in != current.load(Ordering::Acquire) {
                         continue; // held when the worker paused: lost, never rendered
                     }
+                    if job.state.version < newest_seen.load(Ordering::Acquire) {
+                        let (frame, set) = (job.frame, job.set);
+                        if results.send(Ok(Answer::Superseded { frame, set })).is_err() {
+                            break;
+                        }
+                        continue;
+                    }
                     if !renderer.answer(&job, &results) {
                         break;
                     }
                 }
             })
             .map_err(|e| WorkerError::Render(format!("cannot start a render thread: {e}")))?;
-        Ok(Self { inner: Inner::Thread { jobs, epoch } })
+        Ok(Self { inner: Inner::Thread { jobs, epoch, newest } })
     }
 
     /// Drops every job queued and not yet started (the worker paused).
-    pub fn discard_queued(&self) {
-        if let Inner::Thread { epoch, .. } = &self.inner {
-            epoch.fetch_add(1, Ordering::AcqRel);
+    pub fn discard_queued(&mut self) {
+        match &mut self.inner {
+            Inner::Thread { epoch, .. } => {
+                epoch.fetch_add(1, Ordering::AcqRel);
+            }
+            Inner::Simulated { conn, .. } => conn.discard_queued(),
+            Inner::Inline { .. } => {}
         }
     }
 
     /// Queues a job behind the ones already held (or answers it, for the inline renderer).
     pub fn submit(&mut self, job: RenderJob) -> Result<(), WorkerError> {
         match &mut self.inner {
-            Inner::Thread { jobs, epoch } => jobs
-                .send((epoch.load(Ordering::Acquire), job))
-                .map_err(|_| WorkerError::Render("the render thread ended".into())),
+            Inner::Thread { jobs, epoch, newest } => {
+                newest.fetch_max(job.state.version, Ordering::AcqRel);
+                jobs.send((epoch.load(Ordering::Acquire), job))
+                    .map_err(|_| WorkerError::Render("the render thread ended".into()))
+            }
             Inner::Inline { renderer, results } => {
                 renderer.answer(&job, results);
                 Ok(())
+            }
+            Inner::Simulated { conn, table, key, results } => {
+                if table.resolution() != job.state.resolution {
+                    return Err(WorkerError::Render(format!(
+                        "the simulated grid's frames are {}×{}, the job's {}×{}",
+                        table.resolution().width,
+                        table.resolution().height,
+                        job.state.resolution.width,
+                        job.state.resolution.height
+                    )));
+                }
+                conn.submit(&job, table, key, results)
             }
         }
     }
@@ -165,9 +233,9 @@ impl Renderer {
     fn answer(
         &mut self,
         job: &RenderJob,
-        results: &mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: &mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     ) -> bool {
-        let result = self.render(job);
+        let result = self.render(job).map(Answer::Rendered);
         let failed = result.is_err();
         if let Err(err) = &result {
             error!(frame = job.frame, set = job.set, cause = %err, "render failed");
@@ -193,6 +261,9 @@ impl Renderer {
                     std::thread::sleep(std::time::Duration::from_millis(delay_ms.into()));
                 }
                 vec![encode_rgb9e5(null_radiance(job.frame)); pixels.len()]
+            }
+            RendererKind::Simulated(_) => {
+                return Err(WorkerError::Render("the simulated renderer has no thread".into()))
             }
             RendererKind::PathTracer => {
                 self.update_scene(&job.state)?;

@@ -35,7 +35,7 @@ use tracing::{debug, info, warn};
 
 use super::idle::Activity;
 use super::priority::Priority;
-use super::render::{RenderJob, RenderThread, RendererKind};
+use super::render::{Answer, RenderJob, RenderThread, RendererKind};
 use super::shared::Shared;
 use super::WorkerError;
 
@@ -168,7 +168,7 @@ where
     let (results_tx, mut results_rx) = mpsc::unbounded_channel();
     let mut render = RenderThread::spawn(
         &config.name,
-        config.renderer,
+        config.renderer.clone(),
         config.priority,
         Some(view),
         Arc::clone(shared),
@@ -187,7 +187,7 @@ where
         Activity::Working => {
             conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?
         }
-        now => follow_activity(&mut conn, now, &mut paused, &mut live, &render, config).await?,
+        now => follow_activity(&mut conn, now, &mut paused, &mut live, &mut render, config).await?,
     }
 
     loop {
@@ -195,7 +195,7 @@ where
             changed = activity.changed(), if follow => match changed {
                 Ok(()) => {
                     let now = activity.borrow_and_update().clone();
-                    follow_activity(&mut conn, now, &mut paused, &mut live, &render, config).await?;
+                    follow_activity(&mut conn, now, &mut paused, &mut live, &mut render, config).await?;
                 }
                 // The monitor is gone: the last decision stands.
                 Err(_) => follow = false,
@@ -215,6 +215,8 @@ where
                             "job (frame {frame}, set {set}) names state version {state_version}, which was never sent"
                         )));
                     };
+                    // Tests count these: a (frame, set) received twice was handed out twice.
+                    debug!(frame, set, "job received");
                     if paused {
                         debug!(frame, set, "job dropped: paused");
                         continue;
@@ -229,7 +231,15 @@ where
                 Some(other) => return Err(unexpected("State, Job or Heartbeat", &other)),
             },
             result = results_rx.recv() => match result {
-                Some(Ok(result)) => {
+                Some(Ok(Answer::Superseded { frame, set })) => {
+                    // Lost like a paused worker's jobs when it is not live any more.
+                    if live.remove(&(frame, set)) {
+                        conn.send(WorkerMsg::Superseded { frame, set }).await?;
+                        conn.send(WorkerMsg::Ready { credits: 1 }).await?;
+                        debug!(frame, set, "held job superseded by a newer state's");
+                    }
+                }
+                Some(Ok(Answer::Rendered(result))) => {
                     let (frame, set) = (result.frame, result.set);
                     if !live.remove(&(frame, set)) {
                         debug!(frame, set, "result dropped: its job was held when the worker paused");
@@ -253,7 +263,7 @@ async fn follow_activity<S, E>(
     now: Activity,
     paused: &mut bool,
     live: &mut HashSet<(FrameNo, SetNo)>,
-    render: &RenderThread,
+    render: &mut RenderThread,
     config: &SessionConfig,
 ) -> Result<(), WorkerError>
 where

@@ -53,6 +53,9 @@ pub enum Action {
     /// A result for a job never given to this worker: dropped and counted (a
     /// [`Action::Reject`] follows).
     Unknown(JobResult),
+    /// The worker dropped a job it held without rendering it (a newer state's job came
+    /// first): lost like any other, its slot free for the `Ready` that follows.
+    Superseded { frame: FrameNo, set: SetNo },
     /// Send `Rejected` with this reason and close.
     Reject(Rejection),
 }
@@ -292,6 +295,12 @@ impl Session {
                     out.push(Action::RequestJobs(grant));
                 }
             }
+            (Phase::Work { .. }, WorkerMsg::Superseded { frame, set }) => {
+                // A job it does not hold (lost already, e.g. by a pause) changes nothing.
+                if self.held.remove(&(frame, set)).is_some() {
+                    out.push(Action::Superseded { frame, set });
+                }
+            }
             (Phase::Work { key }, WorkerMsg::Result(result)) => {
                 // Checked before anything else reads the result: a corrupted frame or
                 // set number must not be mistaken for a stale or foreign result.
@@ -403,6 +412,7 @@ fn kind(msg: &WorkerMsg) -> &'static str {
         WorkerMsg::Heartbeat => "Heartbeat",
         WorkerMsg::Paused { .. } => "Paused",
         WorkerMsg::Resumed => "Resumed",
+        WorkerMsg::Superseded { .. } => "Superseded",
     }
 }
 

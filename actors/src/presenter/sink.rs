@@ -103,9 +103,18 @@ pub enum SinkError {
     Other(#[source] Box<dyn std::error::Error + Send + Sync>),
 }
 
+/// Told each new scene state as soon as the scene changes (on the actor thread: it must
+/// not block), so that a sink can prepare what frames of that state will need.
+pub type Preparer = Box<dyn Fn(Arc<SceneState>) + Send>;
+
 /// Consumes shown frames, in frame order, on the sink thread.
 pub trait FrameSink: Send + 'static {
     fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError>;
+    /// What to tell about new scene states before any of their frames is shown (the
+    /// compose computes their G-buffers ahead); asked once, before the sink thread starts.
+    fn preparer(&mut self) -> Option<Preparer> {
+        None
+    }
     /// Called once after the last frame, when the master stops.
     fn finish(&mut self) {}
 }

@@ -128,8 +128,6 @@ impl Blas {
     }
 }
 
-/// One placed instance of a BLAS.
-
 /// Builds a CWBVH over triangles, returning it with the leaf order (a triangle
 /// may appear more than once when `params` pre-split).
 pub(super) fn build_tri_bvh(tris: &[Triangle], params: BvhBuildParams) -> (CwBvh, Vec<u32>) {

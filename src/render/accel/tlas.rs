@@ -16,6 +16,7 @@ use super::blas::{build_tri_bvh, Blas};
 use super::traverse::{intersect_node, restart};
 use super::triangle::TriEdges;
 
+/// One placed instance of a BLAS.
 #[derive(Clone)]
 pub struct Instance {
     pub blas: Arc<Blas>,

@@ -182,8 +182,9 @@ impl Sample {
 
 /// User plus system CPU time of this process (all its threads), in microseconds.
 fn process_cpu_us() -> f64 {
-    // SAFETY: getrusage only writes the struct we pass.
+    // SAFETY: rusage is plain integers, for which all-zero bytes are a valid value.
     let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: getrusage writes only the struct it is given, which lives on this stack.
     if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } != 0 {
         return 0.0;
     }
