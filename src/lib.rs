@@ -11,6 +11,8 @@
 //! - [`master`]: the master's glue: running it from a scene, composing shown frames
 //!   (G-buffer, reconstruction, views), the headless sink.
 //! - [`signals`]: Ctrl-C and SIGTERM as a callback (headless master and window).
+//! - [`simgrid`]: simulated workers (modelled render time, cached real pixels) through
+//!   the real worker session, for evaluating grids larger than this machine.
 //! - [`testing`]: how a test that cannot run here says so (and fails under CI).
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
 //! - [`gbuffer`]: the G-buffer (CPU primary rays or the wgpu raster pass, its WGSL beside it).
@@ -36,6 +38,7 @@ pub mod render;
 pub mod scene;
 pub mod shapes;
 pub mod signals;
+pub mod simgrid;
 pub mod testing;
 pub mod tools;
 pub mod window;

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use serde_json::json;
 
+use super::eval_paper::Experiment;
 use super::GlobalArgs;
 use crate::actors::state::Resolution;
 use crate::image_io;
@@ -25,6 +26,20 @@ use crate::tools::eval::{loss, sequence, FrameSource, RenderSource, SyntheticSou
 pub enum EvalCommand {
     /// Reconstruction quality: quasi-random vs tiles under job loss, and sequences.
     Reconstruction(ReconstructionArgs),
+    /// The paper's section 6: every experiment, a report with plots (`--quick`: reduced).
+    Paper(super::eval_paper::Common),
+    /// Figure 3: quasi-random sets vs tiles under job loss, with images.
+    Fig3(super::eval_paper::Fig3Args),
+    /// Figure 5: Q_t at a fixed frame rate while the simulated grid varies.
+    Fig5(super::eval_paper::Fig5Args),
+    /// Table 1 / Figure 7: fps and mean Q_t per scene and grid size.
+    Table1(super::eval_paper::Table1Args),
+    /// Figure 8: a static view converging on simulated grids.
+    Fig8(super::eval_paper::Fig8Args),
+    /// Figure 9: spatio-temporal vs spatial-only reconstruction per frame.
+    Fig9(super::eval_paper::Fig9Args),
+    /// Figure 10: speed-up and efficiency for 1 to 256 simulated workers.
+    Fig10(super::eval_paper::Fig10Args),
 }
 
 /// Arguments of `gridlight eval reconstruction`.
@@ -71,6 +86,13 @@ pub struct ReconstructionArgs {
 pub fn run(cmd: EvalCommand, global: &GlobalArgs) -> anyhow::Result<()> {
     match cmd {
         EvalCommand::Reconstruction(args) => reconstruction(args, global),
+        EvalCommand::Paper(c) => super::eval_paper::run(Experiment::All(c), global),
+        EvalCommand::Fig3(a) => super::eval_paper::run(Experiment::Fig3(a), global),
+        EvalCommand::Fig5(a) => super::eval_paper::run(Experiment::Fig5(a), global),
+        EvalCommand::Table1(a) => super::eval_paper::run(Experiment::Table1(a), global),
+        EvalCommand::Fig8(a) => super::eval_paper::run(Experiment::Fig8(a), global),
+        EvalCommand::Fig9(a) => super::eval_paper::run(Experiment::Fig9(a), global),
+        EvalCommand::Fig10(a) => super::eval_paper::run(Experiment::Fig10(a), global),
     }
 }
 

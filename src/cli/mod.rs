@@ -16,9 +16,11 @@ pub mod bench_owner;
 pub mod bench_waste;
 pub mod demo;
 pub mod eval;
+pub mod eval_paper;
 pub mod master;
 pub mod render;
 pub mod scenes;
+pub mod simgrid;
 pub mod soak;
 pub mod worker;
 pub mod worker_file;
@@ -62,6 +64,9 @@ pub enum Command {
     Worker(worker::Args),
     /// A master plus one local worker process per core, on the Cornell box by default.
     Demo(demo::Args),
+    /// Simulated workers (modelled render time, cached real pixels) for `gridlight eval`.
+    #[command(hide = true)]
+    Simgrid(simgrid::Args),
 }
 
 /// Runs the parsed command line.
@@ -75,6 +80,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Master(args) => master::run(args, &cli.global),
         Command::Worker(args) => worker::run(args, &cli.global),
         Command::Demo(args) => demo::run(args, &cli.global),
+        Command::Simgrid(args) => simgrid::run(args, &cli.global),
     }
 }
 

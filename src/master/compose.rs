@@ -226,7 +226,7 @@ impl Composer {
 
     /// From the second frame of a scene state on (accumulation, which converges), the
     /// G-buffer with each pixel's directly seen emission averaged over its area
-    /// (`reconstruct::emission`), made once per state; the first frame of a state (while
+    /// (`gbuffer::emission`), made once per state; the first frame of a state (while
     /// interacting) keeps the centre's, which costs nothing extra.
     fn for_accumulation(&mut self, g: Arc<GBuffer>, version: StateVersion) -> Arc<GBuffer> {
         let accumulating = self.last_version.replace(version) == Some(version);
@@ -315,7 +315,7 @@ mod tests {
         c.compose(&f, View::Final).unwrap(); // the first frame of a state is filtered
         f.frame = 2;
         let out = c.compose(&f, View::Final).unwrap().linear.unwrap();
-        // Accumulating: the emission is the pixel-area mean (`reconstruct::emission`).
+        // Accumulating: the emission is the pixel-area mean (`gbuffer::emission`).
         let area = Arc::clone(&c.converging.as_ref().expect("an accumulating G-buffer").1);
         for (i, got) in out.iter().enumerate() {
             let want = f.current[i] + area.emission[i];

@@ -188,7 +188,7 @@ impl FrameSink for HeadlessSink {
                 "frame shown"
             );
         }
-        self.write_frame(&mut frame).map_err(SinkError::Other)
+        self.write_frame(&mut frame).map_err(|e| SinkError::Other(e.into()))
     }
 
     fn preparer(&mut self) -> Option<Preparer> {

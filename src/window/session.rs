@@ -54,7 +54,7 @@ impl WindowSink {
     fn compose(&mut self, frame: &ShownFrame) -> Result<ReadyFrame, SinkError> {
         let view =
             View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
-        let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.to_string()))?;
+        let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.into()))?;
         let picture = Picture::from_pixels(c.width, c.height, &c.rgba)
             .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
         let status = status_of(frame, self.composer.reconstructor().unwrap_or_default());

@@ -189,7 +189,7 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
             name: format!("{}#{i}", config.name),
             secret: config.secret.clone().map(Arc::new),
             pipeline: config.pipeline,
-            renderer: config.renderer,
+            renderer: config.renderer.clone(),
             priority: config.priority,
         };
         tasks.spawn(connection_loop(
@@ -217,7 +217,7 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
 }
 
 /// Connects, runs a session, and reconnects with back-off until shutdown or a fatal error.
-async fn connection_loop(
+pub(crate) async fn connection_loop(
     master: String,
     config: SessionConfig,
     shared: Arc<Shared>,

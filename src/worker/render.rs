@@ -6,7 +6,7 @@
 //! scene state (`RenderScene::set_state`) when a job names a version it has not rendered
 //! with yet, derives the job's pixels from the set number (pixel indices never travel),
 //! renders them, packs the reflected radiance (not demodulated: the master divides by its
-//! own G-buffer's albedo, `crate::compose`) as RGB9E5 and tags the result with the
+//! own G-buffer's albedo, `crate::master::compose`) as RGB9E5 and tags the result with the
 //! connection's key (`gridlight_actors::integrity`).
 //!
 //! A job whose state is older than the newest one submitted is not rendered but answered
@@ -20,7 +20,9 @@
 //!
 //! The null renderer (`--null-render`, for `gridlight bench master`) answers every job
 //! with constant radiance at no cost, so a benchmark measures the master alone; without
-//! a simulated delay it answers on the connection's task, with no thread at all.
+//! a simulated delay it answers on the connection's task, with no thread at all. The
+//! simulated renderer (`gridlight simgrid`, `crate::simgrid::renderer`) answers with cached
+//! real pixels after a modelled render time, on a timer rather than a thread.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc as std_mpsc;
@@ -49,13 +51,15 @@ pub fn null_radiance(frame: FrameNo) -> Vec3 {
 }
 
 /// Which renderer a worker runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub enum RendererKind {
     /// The path tracer (`crate::render`).
     PathTracer,
     /// Constant radiance ([`null_radiance`]) for benchmarking the master; `delay_ms`
     /// simulates render time for fault-injection tests (0 in benchmarks).
     Null { delay_ms: u32 },
+    /// Cached path-traced pixels after a modelled render time (`crate::simgrid`).
+    Simulated(Arc<crate::simgrid::SimGrid>),
 }
 
 /// One job with the scene state it names.
@@ -100,6 +104,12 @@ enum Inner {
         renderer: Box<Renderer>,
         results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     },
+    Simulated {
+        conn: Box<crate::simgrid::SimConnection>,
+        table: Arc<gridlight_actors::sets::SetTable>,
+        key: ResultKey,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
+    },
 }
 
 impl RenderThread {
@@ -115,9 +125,20 @@ impl RenderThread {
         key: ResultKey,
         results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     ) -> Result<Self, WorkerError> {
+        if let RendererKind::Simulated(grid) = &kind {
+            let res = grid.cache().resolution();
+            let table = shared
+                .set_table(res, sets)
+                .map_err(|e| WorkerError::Protocol(format!("the master's sets: {e}")))?;
+            let seed =
+                name.bytes().fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b)));
+            let conn = Box::new(crate::simgrid::SimConnection::new(Arc::clone(grid), seed));
+            return Ok(Self { inner: Inner::Simulated { conn, table, key, results } });
+        }
+        let inline = matches!(kind, RendererKind::Null { delay_ms: 0 });
         let mut renderer =
             Renderer { kind, view, shared, sets, key, scene: None, samples: Vec::new() };
-        if kind == (RendererKind::Null { delay_ms: 0 }) {
+        if inline {
             return Ok(Self { inner: Inner::Inline { renderer: Box::new(renderer), results } });
         }
         let (jobs, rx) = std_mpsc::channel::<(u64, RenderJob)>();
@@ -153,9 +174,13 @@ impl RenderThread {
     }
 
     /// Drops every job queued and not yet started (the worker paused).
-    pub fn discard_queued(&self) {
-        if let Inner::Thread { epoch, .. } = &self.inner {
-            epoch.fetch_add(1, Ordering::AcqRel);
+    pub fn discard_queued(&mut self) {
+        match &mut self.inner {
+            Inner::Thread { epoch, .. } => {
+                epoch.fetch_add(1, Ordering::AcqRel);
+            }
+            Inner::Simulated { conn, .. } => conn.discard_queued(),
+            Inner::Inline { .. } => {}
         }
     }
 
@@ -170,6 +195,18 @@ impl RenderThread {
             Inner::Inline { renderer, results } => {
                 renderer.answer(&job, results);
                 Ok(())
+            }
+            Inner::Simulated { conn, table, key, results } => {
+                if table.resolution() != job.state.resolution {
+                    return Err(WorkerError::Render(format!(
+                        "the simulated grid's frames are {}×{}, the job's {}×{}",
+                        table.resolution().width,
+                        table.resolution().height,
+                        job.state.resolution.width,
+                        job.state.resolution.height
+                    )));
+                }
+                conn.submit(&job, table, key, results)
             }
         }
     }
@@ -224,6 +261,9 @@ impl Renderer {
                     std::thread::sleep(std::time::Duration::from_millis(delay_ms.into()));
                 }
                 vec![encode_rgb9e5(null_radiance(job.frame)); pixels.len()]
+            }
+            RendererKind::Simulated(_) => {
+                return Err(WorkerError::Render("the simulated renderer has no thread".into()))
             }
             RendererKind::PathTracer => {
                 self.update_scene(&job.state)?;

@@ -168,7 +168,7 @@ where
     let (results_tx, mut results_rx) = mpsc::unbounded_channel();
     let mut render = RenderThread::spawn(
         &config.name,
-        config.renderer,
+        config.renderer.clone(),
         config.priority,
         Some(view),
         Arc::clone(shared),
@@ -187,7 +187,7 @@ where
         Activity::Working => {
             conn.send(WorkerMsg::Ready { credits: config.pipeline.max(1) }).await?
         }
-        now => follow_activity(&mut conn, now, &mut paused, &mut live, &render, config).await?,
+        now => follow_activity(&mut conn, now, &mut paused, &mut live, &mut render, config).await?,
     }
 
     loop {
@@ -195,7 +195,7 @@ where
             changed = activity.changed(), if follow => match changed {
                 Ok(()) => {
                     let now = activity.borrow_and_update().clone();
-                    follow_activity(&mut conn, now, &mut paused, &mut live, &render, config).await?;
+                    follow_activity(&mut conn, now, &mut paused, &mut live, &mut render, config).await?;
                 }
                 // The monitor is gone: the last decision stands.
                 Err(_) => follow = false,
@@ -263,7 +263,7 @@ async fn follow_activity<S, E>(
     now: Activity,
     paused: &mut bool,
     live: &mut HashSet<(FrameNo, SetNo)>,
-    render: &RenderThread,
+    render: &mut RenderThread,
     config: &SessionConfig,
 ) -> Result<(), WorkerError>
 where

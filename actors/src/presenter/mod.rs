@@ -23,7 +23,9 @@ use actix::prelude::*;
 
 use crate::assembler::accumulate::Accumulator;
 use crate::assembler::frame_table::ClosedFrame;
-use crate::assembler::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
+use crate::assembler::wait_heuristic::{
+    decide, interaction, quality, Decision, Pacing, PacingError,
+};
 use crate::assembler::CloseFrame;
 use crate::connection::workers::WorkerTable;
 use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, Preparer, SinkOutcome};
@@ -258,18 +260,18 @@ impl Handler<SinkDone> for Presenter {
         self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
         match msg.0 {
             Ok(()) => self.evaluate(ctx),
-            Err(e) => self.fail(e),
+            Err(e) => self.fail(e.to_string()),
         }
     }
 }
 
 /// Changes how frames are paced from now on (the window's sliders).
 #[derive(Message)]
-#[rtype(result = "Result<(), String>")]
+#[rtype(result = "Result<(), PacingError>")]
 pub struct SetPacing(pub Pacing);
 
 impl Handler<SetPacing> for Presenter {
-    type Result = Result<(), String>;
+    type Result = Result<(), PacingError>;
     fn handle(&mut self, msg: SetPacing, ctx: &mut Context<Self>) -> Self::Result {
         msg.0.validate()?;
         self.pacing = msg.0;

@@ -253,6 +253,8 @@ pub enum PauseReason {
     OwnerCpu { percent: f32, window_s: f32 },
     /// Keyboard or mouse input `seconds_ago` seconds ago.
     OwnerInput { seconds_ago: f32 },
+    /// A simulated grid's availability curve took the worker away (`gridlight simgrid`).
+    Withdrawn,
 }
 
 impl PauseReason {
@@ -261,6 +263,7 @@ impl PauseReason {
         match self {
             PauseReason::OwnerCpu { .. } => "owner_cpu",
             PauseReason::OwnerInput { .. } => "owner_input",
+            PauseReason::Withdrawn => "withdrawn",
         }
     }
 }
@@ -274,6 +277,7 @@ impl std::fmt::Display for PauseReason {
             PauseReason::OwnerInput { seconds_ago } => {
                 write!(f, "keyboard or mouse used {seconds_ago:.0} s ago")
             }
+            PauseReason::Withdrawn => write!(f, "withdrawn by the simulated grid's availability"),
         }
     }
 }

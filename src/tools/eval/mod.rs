@@ -4,6 +4,7 @@
 //!   against tiles (Figure 3);
 //! - [`sequence`]: an interaction sequence, spatio-temporal against spatial-only
 //!   (Figure 9), and a static view converging as frames accumulate (Figure 8);
+//! - [`paper`]: the paper's section 6 as one report (`eval paper`), on simulated grids;
 //! - metrics: FLIP ([`flip`]), RMSE and SSIM ([`metrics`]).
 //!
 //! Frames come from a [`FrameSource`]: the path tracer for real scenes, or the analytic
@@ -21,6 +22,7 @@ pub mod filter;
 pub mod flip;
 pub mod loss;
 pub mod metrics;
+pub mod paper;
 pub mod render_source;
 pub mod sequence;
 pub mod source;

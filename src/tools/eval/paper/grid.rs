@@ -1,0 +1,384 @@
+//! One session of the real master with a simulated grid (`crate::simgrid`): the
+//! experiments of `eval paper` are sessions with different grids, pacings and views.
+//!
+//! [`Prepared`] measures the scene's cost and renders the frame cache once (written to a
+//! file the simulated-worker processes load); [`run_session`] starts the master in this
+//! process with a sink that records every shown frame (and, for Figure 8, composes it and
+//! measures its FLIP to a gold standard), starts the grid as `gridlight simgrid` child
+//! processes (a few of them, each holding many connections), plays the camera path if
+//! any, and returns per-frame records and the useful fraction of the returned results.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use glam::Vec3;
+use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::edit::Edit;
+use gridlight_actors::master::{self, MasterConfig, Pacing, ShownFrame, SinkError};
+use gridlight_actors::protocol::{Partition, SetsConfig};
+use gridlight_actors::sets::SetTable;
+use gridlight_actors::sink::FrameSink;
+use gridlight_actors::state::SceneState;
+use gridlight_actors::stats::{useful_fraction, Counters};
+use serde::Serialize;
+
+use crate::assets::Assets;
+use crate::children::Children;
+use crate::gpu::Backend;
+use crate::master::compose::Composer;
+use crate::master::view::View;
+use crate::reconstruct::ReconstructParams;
+use crate::render::RenderScene;
+use crate::simgrid::{Availability, CostModel, FrameCache};
+
+/// Sets of the jobs timed to measure a scene's cost.
+const MEASURE_SETS: u32 = 64;
+/// Jobs timed to measure a scene's cost.
+const COST_JOBS: u32 = 24;
+/// Simulated workers per child process at most.
+const WORKERS_PER_PROCESS: u32 = 128;
+/// Longest wait for the grid to connect and the first frames to show.
+const WARMUP_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// A scene with its cost model and frame cache on disk.
+pub struct Prepared {
+    pub name: String,
+    pub assets: Arc<Assets>,
+    pub state: SceneState,
+    pub cost: CostModel,
+    pub cache_file: PathBuf,
+    pub sets: u32,
+}
+
+impl Prepared {
+    /// Measures `state`'s cost on this machine (one core, the master's default sets).
+    pub fn measure(assets: &Arc<Assets>, state: &SceneState) -> anyhow::Result<CostModel> {
+        // Timed on the master's default sets: jobs large enough to time one by one.
+        let table = SetTable::new(
+            state.resolution,
+            SetsConfig { sets: MEASURE_SETS, partition: Partition::QuasiRandom },
+        )
+        .context("pixel sets")?;
+        let scene = RenderScene::new(Arc::clone(assets), state).context("render scene")?;
+        Ok(CostModel::measure(&scene, &table, COST_JOBS))
+    }
+
+    /// Caches `frames` frames of `state` and `path_frames` of each state along `path`,
+    /// with `cost` (measured by [`Prepared::measure`]) timed as `timing` says.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        name: &str,
+        assets: Arc<Assets>,
+        state: SceneState,
+        sets: u32,
+        frames: u32,
+        path: &[(Duration, Edit)],
+        path_frames: u32,
+        dir: &Path,
+        timing: Timing,
+        mut cost: CostModel,
+    ) -> anyhow::Result<Self> {
+        cost.time_scale = timing.time_scale(state.resolution.pixels(), cost.samples_per_second);
+        let (w, h) = (state.resolution.width, state.resolution.height);
+        let mut cache = FrameCache::new(w, h, cost);
+        cache.add_state(&assets, &state, frames)?;
+        let mut s = state.clone();
+        for (_, edit) in path {
+            gridlight_actors::edit::apply(&mut s, edit).context("applying the camera path")?;
+            cache.add_state(&assets, &s, path_frames)?;
+        }
+        let cache_file = dir.join(format!("{name}-{w}x{h}.simgrid"));
+        cache.save(&cache_file)?;
+        Ok(Self { name: name.to_string(), assets, state, cost, cache_file, sets })
+    }
+
+    /// Mean modelled time of one job (one set).
+    pub fn job_time(&self) -> Duration {
+        self.cost.mean_job_time(self.state.resolution.pixels() / self.sets as usize)
+    }
+
+    /// Frames per second one worker renders (all S jobs of a frame).
+    pub fn frames_per_worker_second(&self) -> f64 {
+        1.0 / (self.job_time().as_secs_f64() * f64::from(self.sets))
+    }
+}
+
+/// How the simulated cores are timed.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Timing {
+    /// Jobs are timed as jobs of a frame of this many pixels (the paper's 640×480), while
+    /// their pixels come from the smaller cached frame: each cached pixel stands for
+    /// `paper_pixels / pixels` of them.
+    pub paper_pixels: usize,
+    /// Modelled cores render this many samples per second on the Cornell box; `None`:
+    /// this machine's measured speed.
+    pub core_samples_per_second: Option<f64>,
+    /// This machine's measured samples per second on the Cornell box, the reference
+    /// that makes other scenes' costs relative; `None`: the scene being prepared is it.
+    pub reference_samples_per_second: Option<f64>,
+}
+
+impl Timing {
+    /// The cost model's time scale for a frame of `pixels` pixels whose scene renders
+    /// `measured` samples per second here.
+    fn time_scale(&self, pixels: usize, measured: f64) -> f64 {
+        let size = self.paper_pixels as f64 / pixels.max(1) as f64;
+        let reference = self.reference_samples_per_second.unwrap_or(measured);
+        let speed = self.core_samples_per_second.map_or(1.0, |target| target / reference);
+        size / speed
+    }
+}
+
+/// One session.
+#[derive(Clone, Debug)]
+pub struct Session {
+    pub availability: Availability,
+    pub pacing: Pacing,
+    /// Measured time after the warm-up (a camera path plays from its start).
+    pub seconds: f64,
+    pub path: Vec<(Duration, Edit)>,
+    /// Jobs a worker holds (k).
+    pub pipeline: u32,
+    /// Compose each shown frame and measure FLIP to this linear image (Figure 8).
+    pub gold: Option<Arc<Vec<Vec3>>>,
+}
+
+/// One shown frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRecord {
+    pub frame: u64,
+    /// Seconds since every worker of the grid had connected.
+    pub t: f64,
+    /// Shown inside the measured interval (after the warm-up).
+    pub measured: bool,
+    pub q: f64,
+    pub workers: u64,
+    pub paused_workers: u64,
+    /// The scene-state version the frame was rendered with.
+    pub version: u64,
+    /// FLIP to the gold standard, when one was given.
+    pub flip: Option<f64>,
+}
+
+/// What a session measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct Outcome {
+    /// Frames of the measured interval.
+    pub frames: Vec<FrameRecord>,
+    /// Every frame shown once the grid had connected, warm-up included.
+    pub all_frames: Vec<FrameRecord>,
+    pub frames_per_second: f64,
+    pub mean_q: f64,
+    /// Results used in shown frames ÷ results judged (used, unused or late).
+    pub useful_fraction: f64,
+    pub results_used: u64,
+    /// Results that came back: used, accepted into frames not shown, or late.
+    pub results_returned: u64,
+    pub dropped_late: u64,
+    pub frames_skipped: u64,
+    pub seconds: f64,
+}
+
+/// Runs `session` on `prepared`'s scene; `exe` is the `gridlight` binary.
+pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow::Result<Outcome> {
+    let mut config = MasterConfig::new(
+        SocketAddr::from(([127, 0, 0, 1], 0)),
+        SetsConfig { sets: prepared.sets, partition: Partition::QuasiRandom },
+    );
+    config.pacing = session.pacing;
+    config.pipeline = session.pipeline.max(1);
+    let peak = session.availability.peak();
+    config.max_connections = config.max_connections.max(peak as usize + 8);
+    let records = Arc::new(Mutex::new(Vec::new()));
+    let composer = match &session.gold {
+        Some(_) => Some(
+            Composer::new(
+                Arc::clone(&prepared.assets),
+                &prepared.state,
+                ReconstructParams::default(),
+                Backend::Cpu,
+            )
+            .context("preparing reconstruction")?,
+        ),
+        None => None,
+    };
+    let clock = Arc::new(Mutex::new(Clock::default()));
+    let sink = RecordingSink {
+        records: Arc::clone(&records),
+        composer,
+        gold: session.gold.clone(),
+        clock: Arc::clone(&clock),
+    };
+    let handle = master::start(config, prepared.state.clone(), AssetStore::new(), Box::new(sink))
+        .context("starting the master")?;
+    let _grid = spawn_grid(exe, handle.local_addr(), prepared, session)?;
+
+    let deadline = Instant::now() + WARMUP_TIMEOUT;
+    let want = u64::from(session.availability.at(0).min(peak));
+    while Counters::get(&handle.counters().workers) < want {
+        if Instant::now() >= deadline {
+            bail!(
+                "only {} of {want} simulated workers connected",
+                Counters::get(&handle.counters().workers)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    clock.lock().unwrap_or_else(|p| p.into_inner()).connected = Some(Instant::now());
+    if !handle.wait_for_frames(handle.report().shown + 2, WARMUP_TIMEOUT) {
+        bail!("no frames shown with {want} simulated workers");
+    }
+    let before = Sample::take(&handle);
+    clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = true;
+    if !session.path.is_empty() {
+        handle.play_script(session.path.clone());
+    }
+    std::thread::sleep(Duration::from_secs_f64(session.seconds));
+    let after = Sample::take(&handle);
+    clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = false;
+    drop(_grid);
+    handle.stop().context("stopping the master")?;
+
+    let all_frames: Vec<FrameRecord> =
+        std::mem::take(&mut *records.lock().unwrap_or_else(|p| p.into_inner()));
+    let frames: Vec<FrameRecord> = all_frames.iter().filter(|f| f.measured).cloned().collect();
+    let seconds = after.at.duration_since(before.at).as_secs_f64();
+    let (used, unused, late) =
+        (after.used - before.used, after.unused - before.unused, after.late - before.late);
+    Ok(Outcome {
+        frames_per_second: frames.len() as f64 / seconds,
+        mean_q: mean(frames.iter().map(|f| f.q)),
+        frames,
+        all_frames,
+        useful_fraction: useful_fraction(used, used + unused, late).unwrap_or(0.0),
+        results_used: used,
+        results_returned: used + unused + late,
+        dropped_late: late,
+        frames_skipped: after.skipped - before.skipped,
+        seconds,
+    })
+}
+
+/// Mean of `values` (0 when empty).
+pub fn mean(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
+}
+
+/// Starts the grid's processes; they are killed when the returned value is dropped.
+fn spawn_grid(
+    exe: &Path,
+    master: SocketAddr,
+    prepared: &Prepared,
+    session: &Session,
+) -> anyhow::Result<Children> {
+    let mut children = Children::new();
+    let peak = session.availability.peak();
+    let mut first = 0;
+    while first < peak {
+        let count = WORKERS_PER_PROCESS.min(peak - first);
+        let mut cmd = Command::new(exe);
+        cmd.args(["simgrid", "--master", &master.to_string(), "--cache"])
+            .arg(&prepared.cache_file)
+            .args(["--grid", &session.availability.n.to_string()])
+            .args(["--availability", curve_name(session.availability.curve)])
+            .args(["--period", &session.availability.period.to_string()])
+            .args(["--first", &first.to_string(), "--count", &count.to_string()])
+            .args(["--pipeline", &session.pipeline.max(1).to_string()])
+            .args(match session.pacing {
+                Pacing::FixedFps(fps) => vec!["--fps".to_string(), fps.to_string()],
+                Pacing::Heuristic(_) => Vec::new(),
+            })
+            .env("RUST_LOG", "error")
+            .stdout(Stdio::null());
+        children.spawn(cmd).context("starting a simulated-grid process")?;
+        first += count;
+    }
+    Ok(children)
+}
+
+fn curve_name(curve: crate::simgrid::Curve) -> &'static str {
+    match curve {
+        crate::simgrid::Curve::Constant => "constant",
+        crate::simgrid::Curve::Sine => "sine",
+        crate::simgrid::Curve::Square => "square",
+    }
+}
+
+/// Records shown frames while the clock runs; composes them for Figure 8.
+struct RecordingSink {
+    records: Arc<Mutex<Vec<FrameRecord>>>,
+    composer: Option<Composer>,
+    gold: Option<Arc<Vec<Vec3>>>,
+    clock: Arc<Mutex<Clock>>,
+}
+
+/// When the grid had connected, and whether the measured interval runs.
+#[derive(Default)]
+struct Clock {
+    connected: Option<Instant>,
+    measuring: bool,
+}
+
+impl FrameSink for RecordingSink {
+    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
+        let flip = match (&mut self.composer, &self.gold) {
+            (Some(composer), Some(gold)) => {
+                let composed = composer
+                    .compose(&frame, View::Final)
+                    .map_err(|e| SinkError::Other(Box::new(e)))?;
+                let linear = composed.linear.unwrap_or_default();
+                let res = frame.state.resolution;
+                Some(super::super::compare(gold, &linear, res.width, res.height, 0.0).flip)
+            }
+            _ => None,
+        };
+        let (connected, measured) = {
+            let clock = self.clock.lock().unwrap_or_else(|p| p.into_inner());
+            (clock.connected, clock.measuring)
+        };
+        let Some(start) = connected else { return Ok(()) };
+        let s = &frame.stats;
+        self.records.lock().unwrap_or_else(|p| p.into_inner()).push(FrameRecord {
+            frame: frame.frame,
+            t: start.elapsed().as_secs_f64(),
+            measured,
+            q: s.q,
+            workers: s.workers,
+            paused_workers: s.paused_workers,
+            version: frame.state.version,
+            flip,
+        });
+        Ok(())
+    }
+}
+
+/// Counters at one instant.
+struct Sample {
+    at: Instant,
+    skipped: u64,
+    used: u64,
+    unused: u64,
+    late: u64,
+}
+
+impl Sample {
+    fn take(handle: &master::MasterHandle) -> Self {
+        let c = handle.counters();
+        Self {
+            at: Instant::now(),
+            skipped: handle.report().skipped,
+            used: Counters::get(&c.results_used),
+            unused: Counters::get(&c.results_unused),
+            late: Counters::get(&c.dropped_late),
+        }
+    }
+}
