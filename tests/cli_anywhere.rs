@@ -9,7 +9,12 @@ use std::time::{Duration, Instant};
 
 /// Runs gridlight in `dir` with no asset folders of the environment.
 fn gridlight_in(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gridlight"))
+    run_in(Path::new(env!("CARGO_BIN_EXE_gridlight")), dir, args)
+}
+
+/// Runs `binary` in `dir` with no asset folders of the environment and no display.
+fn run_in(binary: &Path, dir: &Path, args: &[&str]) -> Output {
+    Command::new(binary)
         .args(args)
         .current_dir(dir)
         .env("RUST_LOG", "warn")
@@ -116,4 +121,40 @@ fn render_to_an_unwritable_path_fails_before_rendering() {
         gridlight_in(dir.path(), &["render", "cornell-box", "--spp", "0", "--out", "new.png"]);
     assert!(!run.status.success());
     assert!(!dir.path().join("new.png").exists(), "the claimed output is removed again");
+}
+
+/// What `cargo install --path .` then `gridlight demo` and `gridlight render cornell-box
+/// --out x.png` in an empty directory do, as far as a test can: the binary copied out of
+/// the build tree (as `cargo install` copies it into `--root`/bin), run from an empty
+/// directory far from the sources, with none of cargo's variables.
+#[test]
+fn an_installed_copy_of_the_binary_runs_the_demo_and_renders_from_an_empty_directory() {
+    let root = tempfile::tempdir().unwrap();
+    let bin = root.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    let installed = bin.join("gridlight");
+    std::fs::copy(env!("CARGO_BIN_EXE_gridlight"), &installed).expect("copy the binary");
+    let empty = tempfile::tempdir().unwrap();
+    let cargo_free = |args: &[&str]| {
+        let mut cmd = Command::new(&installed);
+        cmd.args(args).current_dir(empty.path()).env("RUST_LOG", "warn");
+        for (key, _) in std::env::vars_os() {
+            let key = key.to_string_lossy().into_owned();
+            if key.starts_with("CARGO") || key == "GRIDLIGHT_ASSETS" || key.ends_with("DISPLAY") {
+                cmd.env_remove(key);
+            }
+        }
+        cmd.stdin(Stdio::null()).output().expect("run the installed gridlight")
+    };
+    let demo = cargo_free(&["demo", "--workers", "1", "--frames", "2"]);
+    assert!(demo.status.success(), "{}", text(&demo));
+    assert!(
+        String::from_utf8_lossy(&demo.stdout).contains("demo: 2 frames shown"),
+        "{}",
+        text(&demo)
+    );
+    let render = cargo_free(&["render", "cornell-box", "--spp", "1", "--quiet", "--out", "x.png"]);
+    assert!(render.status.success(), "{}", text(&render));
+    let image = image::open(empty.path().join("x.png")).expect("x.png was written");
+    assert_eq!((image.width(), image.height()), (640, 480));
 }

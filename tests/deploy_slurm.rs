@@ -132,7 +132,7 @@ fn workers(line: &Value) -> u64 {
 #[test]
 fn slurm_job_array_workers_join_render_and_leave() {
     if let Some(why) = skip_reason() {
-        eprintln!("skipped: Slurm end-to-end test: {why}");
+        gridlight::testing::skip("Slurm end-to-end test", gridlight::testing::Missing::System, why);
         return;
     }
     let tmp = tempfile::tempdir().unwrap();

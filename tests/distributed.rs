@@ -22,14 +22,17 @@ mod support;
 use support::*;
 
 /// Checks every dumped frame: each pixel is either a hole (0) or the null radiance of
-/// that very frame, and the covered pixels are exactly the returned sets.
+/// that very frame, and the covered pixels are exactly the returned sets. The master
+/// writes a frame's image before its stats line, so every frame listed has one: a missing
+/// image fails, and so does a run with no frame at all. Returns the frames checked.
 fn check_frames_hold_only_their_own_results(master: &Master) -> usize {
     let set_len = (WIDTH * HEIGHT / SETS) as usize;
     let mut checked = 0;
     for line in master.stats() {
         let frame = u(&line, "frame");
         let path = master.dir.join("frames").join(format!("frame-{frame:06}.current.exr"));
-        let Ok(img) = image::open(&path) else { continue };
+        let img = image::open(&path)
+            .unwrap_or_else(|e| panic!("frame {frame} is listed but its image is not: {e}"));
         let img = img.to_rgb32f();
         let own = null_radiance(frame).x;
         let mut covered = 0;
@@ -45,6 +48,7 @@ fn check_frames_hold_only_their_own_results(master: &Master) -> usize {
         assert_eq!(covered, jobs_back * set_len, "frame {frame}: covered pixels vs results back");
         checked += 1;
     }
+    assert!(checked > 0, "no frame was shown, so none could be checked");
     checked
 }
 
@@ -53,8 +57,8 @@ fn two_worker_processes_fill_every_frame_with_that_frames_results_only() {
     let dir = tempfile::tempdir().unwrap();
     let master = Master::start(dir.path(), "127.0.0.1:0", &["--frames", "12"]);
     let cache = dir.path().join("cache");
-    let _a = worker(master.addr, &cache, "a", 2, &[]);
-    let _b = worker(master.addr, &cache, "b", 2, &[]);
+    let a = worker(master.addr, &cache, "a", 2, &[]);
+    let b = worker(master.addr, &cache, "b", 2, &[]);
     let mut master = master;
     let status = master.proc.wait(PATIENCE).expect("master stops after 12 frames");
     assert!(status.success(), "master failed: {}", master.proc.stderr());
@@ -78,7 +82,8 @@ fn two_worker_processes_fill_every_frame_with_that_frames_results_only() {
         assert!(stats[0].get(key).is_some(), "stats line lacks `{key}`: {}", stats[0]);
     }
     assert!(stats.iter().any(|s| u(s, "workers") == 2), "both workers took part");
-    assert!(stats.iter().all(|s| u(s, "dropped_duplicate") == 0));
+    assert!(stats.iter().all(|s| u(s, "dropped_duplicate") == 0), "no result arrived twice");
+    assert_nothing_handed_out_twice(&[&a, &b]);
     assert_eq!(check_frames_hold_only_their_own_results(&master), 12);
     assert!(dir.path().join("frames/summary.json").is_file(), "summary written at the end");
 }
@@ -90,7 +95,7 @@ fn frames_go_on_when_a_worker_is_killed_mid_frame() {
     let cache = dir.path().join("cache");
     // The victim is slow, so it always holds jobs when it dies.
     let victim = worker(master.addr, &cache, "victim", 150, &[]);
-    let _steady = worker(master.addr, &cache, "steady", 5, &[]);
+    let steady = worker(master.addr, &cache, "steady", 5, &[]);
     eventually("the victim renders", || (!victim.results_sent().is_empty()).then_some(()));
     master.wait_more_frames(2);
     victim.signal(libc::SIGKILL);
@@ -99,7 +104,9 @@ fn frames_go_on_when_a_worker_is_killed_mid_frame() {
     let stats = master.stats();
     let after: Vec<_> = stats[killed_at + 2..].iter().collect();
     assert!(after.iter().all(|s| u(s, "workers") == 1), "the dead worker is gone from the master");
-    assert!(stats.iter().all(|s| u(s, "dropped_duplicate") == 0), "nothing was handed out twice");
+    assert!(stats.iter().all(|s| u(s, "dropped_duplicate") == 0), "no result arrived twice");
+    // The jobs the victim held when it died were lost, never handed to the steady worker.
+    assert_nothing_handed_out_twice(&[&victim, &steady]);
     check_frames_hold_only_their_own_results(&master);
 }
 
@@ -109,7 +116,7 @@ fn a_stopped_worker_has_its_late_result_dropped_and_then_gets_new_work() {
     let master = Master::start(dir.path(), "127.0.0.1:0", &[]);
     let cache = dir.path().join("cache");
     let sleeper = worker(master.addr, &cache, "sleeper", 40, &[]);
-    let _steady = worker(master.addr, &cache, "steady", 5, &[]);
+    let steady = worker(master.addr, &cache, "steady", 5, &[]);
     eventually("the sleeper renders", || (sleeper.results_sent().len() >= 2).then_some(()));
     sleeper.signal(libc::SIGSTOP);
     // Its held jobs' frames are shown without it (well within the master's peer timeout).
@@ -124,6 +131,8 @@ fn a_stopped_worker_has_its_late_result_dropped_and_then_gets_new_work() {
     eventually("the sleeper gets new work", || {
         (sleeper.results_sent().len() > before + 2).then_some(())
     });
+    // The sleeper's jobs, late or not, were never handed to the steady worker as well.
+    assert_nothing_handed_out_twice(&[&sleeper, &steady]);
     check_frames_hold_only_their_own_results(&master);
 }
 

@@ -13,7 +13,7 @@ use serde_json::Value;
 fn skipped(test: &str) -> bool {
     match Testbed::unavailable() {
         Some(why) => {
-            eprintln!("skipped: {test}: {why}");
+            gridlight::testing::skip(test, gridlight::testing::Missing::System, why);
             true
         }
         None => false,

@@ -18,8 +18,9 @@ fn known(i: InputIdle) -> Duration {
 
 #[test]
 fn the_x_servers_idle_time_is_read_and_grows_without_input() {
-    let Some(xvfb) = Xvfb::start(320, 240) else {
-        eprintln!("skipped: Xvfb is not installed (apt-get install xvfb)");
+    let Some(xvfb) =
+        Xvfb::start_or_skip("the_x_servers_idle_time_is_read_and_grows_without_input", 320, 240)
+    else {
         return;
     };
     let mut x = X11::connect_to(Some(&xvfb.display)).expect("Xvfb has MIT-SCREEN-SAVER");

@@ -106,7 +106,12 @@ fn gpu_matches_cpu_reference() {
     let ctx = match gridlight::gpu::GpuContext::new() {
         Ok(ctx) => ctx,
         Err(err) => {
-            println!("skipped: the GPU half of the parity test needs a wgpu adapter ({err})");
+            let why = format!("the GPU half of the parity test needs a wgpu adapter ({err})");
+            gridlight::testing::skip(
+                "gpu_matches_cpu_reference",
+                gridlight::testing::Missing::Adapter,
+                why,
+            );
             return;
         }
     };

@@ -37,7 +37,7 @@ fn load(name: &str) -> Option<LoadedScene> {
                     Problem::Asset(AssetError::Resolve(ResolveError::NotFound { .. }))
                 ) =>
         {
-            println!("skipping {name}: public assets not found ({err})");
+            gridlight::testing::skip(name, gridlight::testing::Missing::Assets, err);
             None
         }
         Err(err) => panic!("{err}"),

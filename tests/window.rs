@@ -24,8 +24,11 @@ const EDIT_AT_S: f64 = 25.0;
 
 #[test]
 fn the_demo_window_shows_the_cornell_box_follows_edits_and_closes_cleanly() {
-    let Some(xvfb) = Xvfb::start(WIDTH, HEIGHT) else {
-        eprintln!("SKIPPED: no Xvfb on this machine (apt-get install xvfb; .ci/run does)");
+    let Some(xvfb) = Xvfb::start_or_skip(
+        "the_demo_window_shows_the_cornell_box_follows_edits_and_closes_cleanly",
+        WIDTH,
+        HEIGHT,
+    ) else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

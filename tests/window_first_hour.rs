@@ -77,8 +77,9 @@ fn wait_exit(
 #[test]
 fn ctrl_c_stops_the_windowed_demo_its_window_and_its_workers() {
     let _serial = one_at_a_time();
-    let Some(xvfb) = Xvfb::start(1280, 800) else {
-        eprintln!("SKIPPED: no Xvfb on this machine (apt-get install xvfb; .ci/run does)");
+    let Some(xvfb) =
+        Xvfb::start_or_skip("ctrl_c_stops_the_windowed_demo_its_window_and_its_workers", 1280, 800)
+    else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -158,10 +159,7 @@ fn wheel_down(conn: &RustConnection, root: Window, x: i16, y: i16, clicks: usize
 
 fn panel_fits_at(width: u16, height: u16) {
     let _serial = one_at_a_time();
-    let Some(xvfb) = Xvfb::start(width, height) else {
-        eprintln!("SKIPPED: no Xvfb on this machine (apt-get install xvfb; .ci/run does)");
-        return;
-    };
+    let Some(xvfb) = Xvfb::start_or_skip("panel_fits_at", width, height) else { return };
     let dir = tempfile::tempdir().unwrap();
     let probe_file = dir.path().join("panel.json");
     let mut demo = start_demo(&xvfb, dir.path(), Some(&probe_file));

@@ -342,3 +342,47 @@ async fn a_worker_that_starts_paused_takes_no_job_until_the_owner_leaves() {
     let outcome = tokio::time::timeout(STEP, worker).await.expect("worker stopped").unwrap();
     assert!(outcome.is_ok(), "{outcome:?}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_held_job_of_an_older_state_is_dropped_when_a_newer_states_job_comes() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let cancel = CancellationToken::new();
+    let mut c = config(listener.local_addr().unwrap().to_string(), cache.path(), None);
+    // A render thread that takes a while per job, so that the second job is still queued
+    // when the newer state's job arrives.
+    c.renderer = RendererKind::Null { delay_ms: 300 };
+    let worker = tokio::spawn(worker::run_until(c, cancel.clone()));
+
+    let mut peer = accept(&listener).await;
+    handshake(&mut peer, None, vec![]).await;
+    assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
+    peer.send(MasterMsg::State(Box::new(state(1)))).await.unwrap();
+    for set in [0, 1] {
+        peer.send(MasterMsg::Job { frame: 1, set, state_version: 1 }).await.unwrap();
+    }
+    // The scene changed: the first job is being rendered, the second is queued.
+    peer.send(MasterMsg::State(Box::new(state(2)))).await.unwrap();
+    peer.send(MasterMsg::Job { frame: 2, set: 0, state_version: 2 }).await.unwrap();
+    let mut got = Vec::new();
+    while got.len() < 6 {
+        got.push(recv(&mut peer).await);
+    }
+    let result_of = |frame, set| {
+        got.iter()
+            .position(|m| matches!(m, WorkerMsg::Result(r) if (r.frame, r.set) == (frame, set)))
+    };
+    assert!(result_of(1, 0).is_some(), "the job being rendered is finished: {got:?}");
+    assert!(result_of(1, 1).is_none(), "the queued old job is not rendered: {got:?}");
+    let dropped = got
+        .iter()
+        .position(|m| *m == WorkerMsg::Superseded { frame: 1, set: 1 })
+        .expect("the worker says it dropped the old job");
+    assert_eq!(got.get(dropped + 1), Some(&WorkerMsg::Ready { credits: 1 }), "{got:?}");
+    assert!(result_of(2, 0).is_some(), "the new state's job is rendered: {got:?}");
+    assert_eq!(got.iter().filter(|m| **m == WorkerMsg::Ready { credits: 1 }).count(), 3);
+
+    cancel.cancel();
+    let outcome = tokio::time::timeout(STEP, worker).await.expect("worker stopped").unwrap();
+    assert!(outcome.is_ok(), "{outcome:?}");
+}

@@ -35,7 +35,7 @@ use crate::supervision::{InjectPanic, RestartPolicy};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
 
-pub use crate::assembler::wait_heuristic::{Heuristic, Pacing};
+pub use crate::assembler::wait_heuristic::{Heuristic, Pacing, PacingError};
 pub use crate::presenter::sink::{ShownFrame, SinkError};
 pub use crate::presenter::stats::FrameStats;
 pub use crate::presenter::ReportState as MasterReport;
@@ -114,7 +114,7 @@ pub enum MasterError {
     #[error("the master has stopped")]
     Stopped,
     #[error("pacing: {0}")]
-    Pacing(String),
+    Pacing(#[from] PacingError),
     #[error(transparent)]
     Edit(#[from] EditError),
 }
@@ -143,7 +143,7 @@ pub fn start(
     sink: Box<dyn FrameSink>,
 ) -> std::io::Result<MasterHandle> {
     let invalid = |m: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, m);
-    config.pacing.validate().map_err(invalid)?;
+    config.pacing.validate().map_err(|e| invalid(e.to_string()))?;
     if config.pipeline == 0 || config.max_connections == 0 {
         return Err(invalid("pipeline (k) and max_connections must be at least 1".into()));
     }
@@ -178,6 +178,7 @@ pub fn start(
     let workers = Arc::new(WorkerTable::default());
     let (tx, rx) = std::sync::mpsc::channel();
     let (r, c, w) = (report.clone(), counters.clone(), workers.clone());
+    let (r_end, c_end) = (report.clone(), counters.clone());
     let thread = std::thread::Builder::new().name("gridlight-master".into()).spawn(move || {
         let system = System::new();
         let wired = system.block_on(async move {
@@ -189,10 +190,17 @@ pub fn start(
         });
         let ok = wired.is_ok();
         let _ = tx.send(wired.map(|a| (System::current(), a)));
-        if ok {
-            system.run()
-        } else {
-            Ok(())
+        if !ok {
+            return Ok(());
+        }
+        let ran = system.run();
+        // Escalation stops the system without the presenter's finish: whoever waits for
+        // the report (the headless master) must still see the end, and why.
+        let escalation = c_end.escalation.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        r_end.finish(escalation.clone());
+        match escalation {
+            Some(why) => Err(std::io::Error::other(why)),
+            None => ran,
         }
     })?;
     let (system, actors) = match rx.recv() {
@@ -330,7 +338,7 @@ impl MasterHandle {
     /// Changes the pacing (wait heuristic bounds or frame rate) from now on; a bad value
     /// is refused with the reason and the pacing stays as it was.
     pub fn set_pacing(&self, pacing: Pacing) -> Result<(), MasterError> {
-        block_on(self.presenter.send(SetPacing(pacing)))?.map_err(MasterError::Pacing)?;
+        block_on(self.presenter.send(SetPacing(pacing)))??;
         self.scheduler.do_send(PacingChanged(pacing));
         Ok(())
     }

@@ -158,6 +158,7 @@ fn worker_msg() -> impl Strategy<Value = WorkerMsg> {
             reason: PauseReason::OwnerInput { seconds_ago }
         }),
         Just(WorkerMsg::Resumed),
+        (any::<u64>(), any::<u32>()).prop_map(|(frame, set)| WorkerMsg::Superseded { frame, set }),
     ]
 }
 

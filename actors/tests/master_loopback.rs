@@ -456,3 +456,19 @@ fn credits_or_results_while_paused_and_resuming_unpaused_end_the_connection() {
             && Counters::get(&m.counters().paused_workers) == 0
     });
 }
+
+#[test]
+fn panics_past_the_restart_intensity_stop_the_master_with_a_message_naming_the_actor() {
+    let mut c = config();
+    c.restart.max_restarts = 2;
+    let (sink, _rx) = collect_sink();
+    let m = start(c, scene(), AssetStore::new(), sink).expect("start");
+    for _ in 0..3 {
+        m.inject_panic(ActorKind::Scheduler);
+    }
+    assert!(m.wait_finished(Duration::from_secs(20)), "the master did not stop");
+    let error = m.report().error.expect("an escalation is an error");
+    assert!(error.contains("scheduler") && error.contains("3 times"), "{error}");
+    let stopped = m.stop().expect_err("an escalated master stops with an error");
+    assert!(stopped.to_string().contains("scheduler"), "{stopped}");
+}

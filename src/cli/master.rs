@@ -98,6 +98,12 @@ pub struct DisplayArgs {
     /// Exposure in stops before the filmic tonemap.
     #[arg(long)]
     pub exposure: Option<f32>,
+    /// Compute each new scene state's G-buffer on a thread of its own as soon as the
+    /// scene changes, while the workers render it. For a master with cores to spare (its
+    /// workers on other machines); beside local workers on few cores it only competes
+    /// with the reconstruction (README, edit-to-display latency).
+    #[arg(long)]
+    pub gbuffer_ahead: bool,
 }
 
 impl DisplayArgs {

@@ -157,6 +157,14 @@ impl GpuGBuffer {
         self.last_ms
     }
 
+    /// Brings the render scene (picking's) to `state` without drawing.
+    pub fn set_state(&mut self, state: &SceneState) -> Result<(), GBufferError> {
+        if self.scene.state().version != state.version {
+            self.scene.set_state(state)?;
+        }
+        Ok(())
+    }
+
     /// The G-buffer of `state`: draws every visible instance and quad light, reads the
     /// targets back and fills in the environment seen by rays that hit nothing.
     pub fn compute(&mut self, state: &SceneState) -> Result<GBuffer, GBufferError> {

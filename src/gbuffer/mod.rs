@@ -5,7 +5,8 @@
 //! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel) or the wgpu raster pass
 //! ([`GpuGBuffer`]: `gpu.rs` with its device objects in `raster.rs` and its WGSL in
 //! `raster.wgsl`); [`GBufferSource`] picks one and caches by state version. `emission.rs`
-//! refines the directly seen emission of converging frames.
+//! refines the directly seen emission of converging frames; `ahead.rs` computes a new
+//! state's G-buffer on its own thread before its first frame is composed (`--gbuffer-ahead`).
 //! Stored as separate planes (structure of arrays) because each pass reads only some of
 //! them and the GPU uploads each as its own texture.
 
@@ -19,6 +20,7 @@ use rayon::prelude::*;
 use crate::assets::Assets;
 use crate::gpu::{Backend, GpuContext, GpuError};
 
+pub mod ahead;
 pub mod emission;
 pub mod gpu;
 mod raster;
@@ -266,6 +268,24 @@ impl GBufferSource {
     /// Why `Auto` chose the CPU path, if it did.
     pub fn fallback_reason(&self) -> Option<&str> {
         self.fallback.as_deref()
+    }
+
+    /// Makes `g`, `state`'s G-buffer computed elsewhere (`ahead`), the
+    /// current one, and the render scene `state`'s, as [`Self::get`] would have.
+    pub fn adopt(
+        &mut self,
+        state: &SceneState,
+        g: Arc<GBuffer>,
+    ) -> Result<Arc<GBuffer>, GBufferError> {
+        match &mut self.engine {
+            Engine::Gpu(gpu) => gpu.set_state(state)?,
+            Engine::Cpu(scene) if scene.state().version != state.version => {
+                scene.set_state(state)?
+            }
+            Engine::Cpu(_) => {}
+        }
+        self.current = Some((state.version, Arc::clone(&g)));
+        Ok(g)
     }
 
     /// The G-buffer of `state`, computed only when its version is new.

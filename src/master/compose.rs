@@ -18,14 +18,16 @@
 //! switches back to the final view.
 
 use std::sync::{Arc, RwLock};
+use std::time::Instant;
 
 use glam::Vec3;
-use gridlight_actors::sink::ShownFrame;
+use gridlight_actors::sink::{Preparer, ShownFrame};
 use gridlight_actors::state::{SceneState, StateVersion};
 use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::assets::Assets;
+use crate::gbuffer::ahead::GBufferAhead;
 use crate::gbuffer::emission::area_mean_emission;
 use crate::gbuffer::{GBuffer, GBufferError, GBufferSource};
 use crate::gpu::Backend;
@@ -45,6 +47,8 @@ pub enum ComposeError {
     Reconstruct(#[from] ReconstructError),
     #[error("the frame's planes do not match its {width}×{height} resolution")]
     Size { width: u32, height: u32 },
+    #[error("cannot start the G-buffer thread: {0}")]
+    Thread(std::io::Error),
 }
 
 /// One composed frame.
@@ -56,11 +60,30 @@ pub struct Composed {
     pub rgba: Vec<[u8; 4]>,
     /// Final linear colour (albedo · radiance + emission), only for the final view.
     pub linear: Option<Vec<Vec3>>,
+    /// Where the compose time went (written to `stats.jsonl`).
+    pub timings: ComposeTimings,
+}
+
+/// Milliseconds each step of one compose took: what the edit-to-display latency spends on
+/// the master after the display decided to show a frame.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct ComposeTimings {
+    /// Getting the frame's G-buffer (0 when it was ready: cached or prepared).
+    pub gbuffer_ms: f64,
+    /// Demodulation and reconstruction.
+    pub reconstruct_ms: f64,
+    /// The whole compose, the chosen view included.
+    pub compose_ms: f64,
 }
 
 /// G-buffer, reconstruction and views for a run's shown frames.
 pub struct Composer {
+    assets: Arc<Assets>,
     gbuffers: SharedScene,
+    /// New states' G-buffers computed ahead, once [`Composer::preparer`] was asked for.
+    ahead: Option<GBufferAhead>,
+    /// Whether a frame sink asks for [`Composer::preparer`] (`--gbuffer-ahead`).
+    ahead_for_sink: bool,
     params: ReconstructParams,
     backend: Backend,
     reconstructor: Option<Reconstructor>,
@@ -81,9 +104,12 @@ impl Composer {
         backend: Backend,
     ) -> Result<Self, ComposeError> {
         params.validate()?;
-        let source = GBufferSource::new(assets, state, backend)?;
+        let source = GBufferSource::new(Arc::clone(&assets), state, backend)?;
         Ok(Self {
+            assets,
             gbuffers: Arc::new(RwLock::new(source)),
+            ahead: None,
+            ahead_for_sink: false,
             params,
             backend,
             reconstructor: None,
@@ -105,10 +131,21 @@ impl Composer {
 
     /// Reconstructs `frame` and makes `view` of it.
     pub fn compose(&mut self, frame: &ShownFrame, view: View) -> Result<Composed, ComposeError> {
+        let started = Instant::now();
+        let ms = |from: Instant| from.elapsed().as_secs_f64() * 1e3;
         let res = frame.state.resolution;
         let (width, height) = (res.width, res.height);
-        let g = self.gbuffers.write().unwrap_or_else(|p| p.into_inner()).get(&frame.state)?;
+        let ready = self.ahead.as_ref().and_then(|a| a.take(frame.state.version));
+        let g = {
+            let mut source = self.gbuffers.write().unwrap_or_else(|p| p.into_inner());
+            match ready {
+                Some(g) => source.adopt(&frame.state, g)?,
+                None => source.get(&frame.state)?,
+            }
+        };
         let g = self.for_accumulation(g, frame.state.version);
+        let mut timings = ComposeTimings { gbuffer_ms: ms(started), ..Default::default() };
+        let reconstructing = Instant::now();
         if frame.current.len() != g.albedo.len() {
             return Err(ComposeError::Size { width, height });
         }
@@ -125,8 +162,11 @@ impl Composer {
             gbuffer: &g,
         };
         let out = reconstructor.reconstruct(&inputs)?;
+        timings.reconstruct_ms = ms(reconstructing);
         if view == View::Final {
-            return Ok(Composed { width, height, rgba: out.display, linear: Some(out.colour) });
+            timings.compose_ms = ms(started);
+            let linear = Some(out.colour);
+            return Ok(Composed { width, height, rgba: out.display, linear, timings });
         }
         let owner = if view == View::Workers {
             frame.owners.per_pixel(frame.current.len())
@@ -147,14 +187,46 @@ impl Composer {
         let rgba =
             view::diagnostic(view, &planes, |c| crate::reconstruct::tonemap::to_rgba8(c, exposure))
                 .ok_or(ComposeError::Size { width, height })?;
-        Ok(Composed { width, height, rgba, linear: None })
+        timings.compose_ms = ms(started);
+        Ok(Composed { width, height, rgba, linear: None, timings })
     }
 }
 
 impl Composer {
+    /// Computes the G-buffers of new scene states ahead from now on, on a thread of its
+    /// own with a G-buffer source of its own (`crate::gbuffer::ahead`): the master's
+    /// display tells the returned preparer each new state as soon as the scene changes.
+    pub fn preparer(&mut self) -> Result<Preparer, ComposeError> {
+        let current =
+            self.gbuffers.read().unwrap_or_else(|p| p.into_inner()).scene().state().clone();
+        let source = GBufferSource::new(Arc::clone(&self.assets), &current, self.backend)?;
+        let ahead = GBufferAhead::spawn(source).map_err(ComposeError::Thread)?;
+        let handle = ahead.handle();
+        self.ahead = Some(ahead);
+        Ok(Box::new(move |state| handle.want(state)))
+    }
+
+    /// Whether the frame sinks compute G-buffers ahead ([`Composer::sink_preparer`]).
+    pub fn with_gbuffer_ahead(mut self, on: bool) -> Self {
+        self.ahead_for_sink = on;
+        self
+    }
+
+    /// [`Composer::preparer`] for a frame sink, when asked for (`with_gbuffer_ahead`);
+    /// without it, or when the thread cannot start, every G-buffer is computed when its
+    /// frame is composed.
+    pub fn sink_preparer(&mut self) -> Option<Preparer> {
+        if !self.ahead_for_sink {
+            return None;
+        }
+        self.preparer()
+            .map_err(|e| tracing::warn!(cause = %e, "G-buffers are not computed ahead"))
+            .ok()
+    }
+
     /// From the second frame of a scene state on (accumulation, which converges), the
     /// G-buffer with each pixel's directly seen emission averaged over its area
-    /// (`reconstruct::emission`), made once per state; the first frame of a state (while
+    /// (`gbuffer::emission`), made once per state; the first frame of a state (while
     /// interacting) keeps the centre's, which costs nothing extra.
     fn for_accumulation(&mut self, g: Arc<GBuffer>, version: StateVersion) -> Arc<GBuffer> {
         let accumulating = self.last_version.replace(version) == Some(version);
@@ -243,7 +315,7 @@ mod tests {
         c.compose(&f, View::Final).unwrap(); // the first frame of a state is filtered
         f.frame = 2;
         let out = c.compose(&f, View::Final).unwrap().linear.unwrap();
-        // Accumulating: the emission is the pixel-area mean (`reconstruct::emission`).
+        // Accumulating: the emission is the pixel-area mean (`gbuffer::emission`).
         let area = Arc::clone(&c.converging.as_ref().expect("an accumulating G-buffer").1);
         for (i, got) in out.iter().enumerate() {
             let want = f.current[i] + area.emission[i];

@@ -10,11 +10,11 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
+use gridlight_actors::sink::{FrameSink, Preparer, ShownFrame, SinkError};
 use serde::Serialize;
 use tracing::info;
 
-use crate::master::compose::Composer;
+use crate::master::compose::{ComposeTimings, Composer};
 use crate::master::view::View;
 
 /// What the sink writes, and where.
@@ -56,7 +56,24 @@ pub struct Summary {
     pub paused_by_reason: std::collections::BTreeMap<String, u64>,
     pub bytes_in: u64,
     pub bytes_out: u64,
+    /// Queued jobs of outdated scene states discarded (never handed out).
+    pub jobs_discarded_stale: u64,
+    /// Held jobs of outdated scene states that workers dropped unrendered.
+    pub jobs_superseded: u64,
     pub seconds: f64,
+}
+
+/// One line of the stats file: the display's statistics of a frame and where its compose
+/// time went.
+#[derive(Serialize)]
+struct StatsLine<'a> {
+    #[serde(flatten)]
+    frame: &'a gridlight_actors::stats::FrameStats,
+    /// Each edit's latency up to the display's decision to show this frame (the rest of
+    /// `edit_latency_ms` is the compose).
+    edit_to_decision_ms: Vec<f64>,
+    #[serde(flatten)]
+    compose: ComposeTimings,
 }
 
 /// The headless [`FrameSink`].
@@ -97,9 +114,13 @@ impl HeadlessSink {
     }
 
     fn write_frame(&mut self, frame: &mut ShownFrame) -> Result<(), String> {
+        // The display stamped the latencies when it decided to show the frame.
+        let edit_to_decision_ms = frame.stats.edit_latency_ms.clone();
         let composed =
             self.composer.compose(frame, self.options.view).map_err(|e| e.to_string())?;
-        // Composed is what the headless master shows: the edit latency ends here.
+        // Composed is what the headless master shows (its picture exists; writing it to a
+        // file is not showing it): the edit latency ends here, as the window's ends when
+        // the picture is presented.
         frame.stats.stamp_edit_latency(std::time::Instant::now());
         if let Some(dir) = &self.options.out_dir {
             let (w, h) = (composed.width, composed.height);
@@ -117,7 +138,9 @@ impl HeadlessSink {
             }
         }
         if let Some(stats) = &mut self.stats {
-            let line = serde_json::to_string(&frame.stats).map_err(|e| e.to_string())?;
+            let line =
+                StatsLine { frame: &frame.stats, edit_to_decision_ms, compose: composed.timings };
+            let line = serde_json::to_string(&line).map_err(|e| e.to_string())?;
             writeln!(stats, "{line}")
                 .and_then(|()| stats.flush())
                 .map_err(|e| format!("stats file: {e}"))?;
@@ -141,6 +164,8 @@ impl HeadlessSink {
         }
         sum.bytes_in = s.bytes_in;
         sum.bytes_out = s.bytes_out;
+        sum.jobs_discarded_stale = s.jobs_discarded_stale;
+        sum.jobs_superseded = s.jobs_superseded;
         self.q_sum += s.q;
         self.wait_sum += s.wait_ms;
         sum.mean_q = self.q_sum / sum.frames_shown as f64;
@@ -163,7 +188,11 @@ impl FrameSink for HeadlessSink {
                 "frame shown"
             );
         }
-        self.write_frame(&mut frame).map_err(SinkError::Other)
+        self.write_frame(&mut frame).map_err(|e| SinkError::Other(e.into()))
+    }
+
+    fn preparer(&mut self) -> Option<Preparer> {
+        self.composer.sink_preparer()
     }
 
     fn finish(&mut self) {

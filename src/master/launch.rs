@@ -104,6 +104,7 @@ impl Prepared {
     /// A composer for this run's frames.
     pub fn composer(&self, opts: &MasterOptions) -> anyhow::Result<Composer> {
         Composer::new(Arc::clone(&self.assets), &self.state, self.params, opts.display.reconstruct)
+            .map(|c| c.with_gbuffer_ahead(opts.display.gbuffer_ahead))
             .with_context(|| format!("preparing reconstruction for {}", opts.scene))
     }
 }

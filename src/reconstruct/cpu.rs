@@ -10,7 +10,7 @@ use bytemuck::Zeroable;
 use glam::Vec4;
 
 use super::history::{Accumulation, HistoryRing};
-use super::pass::{self as passes, FillInputs, Outputs, PassConsts, PastFrame};
+use super::pass::{self, FillInputs, Outputs, PassConsts, PastFrame};
 use super::planes::{GuidePlanes, Layout, Planes3};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
 
@@ -106,8 +106,8 @@ impl CpuReconstructor {
         let (reset, mode) = self.accumulation.begin(inputs.state_version);
 
         self.guide.split(&g.normal, &g.position, layout);
-        passes::accumulate(reset, inputs.radiance, inputs.mask, &mut self.accum, self.width);
-        passes::fill(&self.accum, &self.guide, &c, layout, &mut self.fill_inputs, &mut self.filled);
+        pass::accumulate(reset, inputs.radiance, inputs.mask, &mut self.accum, self.width);
+        pass::fill(&self.accum, &self.guide, &c, layout, &mut self.fill_inputs, &mut self.filled);
         let result = if mode == Mode::Interacting {
             let weights = self.ring.weights(inputs.frame);
             let past: Vec<PastFrame> = self
@@ -117,8 +117,8 @@ impl CpuReconstructor {
                 .filter(|(_, w)| *w > 0.0)
                 .map(|(p, weight)| PastFrame { weight, radiance: &p.radiance, guide: &p.guide })
                 .collect();
-            passes::temporal(&self.filled, &self.guide, &past, &c, layout, &mut self.blended);
-            passes::gaussian(&self.blended, &self.guide, &c, layout, &mut self.filtered);
+            pass::temporal(&self.filled, &self.guide, &past, &c, layout, &mut self.blended);
+            pass::gaussian(&self.blended, &self.guide, &c, layout, &mut self.filtered);
             &self.filtered
         } else {
             &self.filled
@@ -131,7 +131,7 @@ impl CpuReconstructor {
             colour: sized(&mut out.colour, n),
             display: sized(&mut out.display, n),
         };
-        passes::remodulate(result, layout, &g.albedo, &g.emission, &c, outputs);
+        pass::remodulate(result, layout, &g.albedo, &g.emission, &c, outputs);
 
         if let Some(slot) = self.ring.push(inputs.frame) {
             let p = &mut self.past[slot];

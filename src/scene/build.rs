@@ -204,7 +204,7 @@ impl Builder<'_> {
             ));
         }
         if let Err(why) = super::display_pacing(d, &Default::default()).validate() {
-            return Err(self.invalid("render.display", why));
+            return Err(self.invalid("render.display", why.to_string()));
         }
         Ok(())
     }

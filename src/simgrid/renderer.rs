@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use gridlight_actors::integrity::ResultKey;
-use gridlight_actors::protocol::{JobResult, PackedRadiance};
+use gridlight_actors::protocol::PackedRadiance;
 use gridlight_actors::sets::SetTable;
 use gridlight_actors::state::{SceneState, StateVersion};
 use rand::SeedableRng;
@@ -20,7 +20,7 @@ use tokio::sync::mpsc;
 use tokio::time::Instant;
 
 use super::frames::{state_key, FrameCache, StateKey};
-use crate::worker::render::RenderJob;
+use crate::worker::render::{Answer, RenderJob};
 use crate::worker::WorkerError;
 
 /// What the simulated workers of one process share.
@@ -87,7 +87,7 @@ impl SimConnection {
         job: &RenderJob,
         table: &SetTable,
         key: &ResultKey,
-        results: &mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: &mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     ) -> Result<(), WorkerError> {
         self.grid.newest_frame.fetch_max(job.frame, Ordering::Relaxed);
         let pixels = table.pixels(job.set).ok_or_else(|| {
@@ -126,7 +126,7 @@ impl SimConnection {
         tokio::spawn(async move {
             tokio::time::sleep_until(done).await;
             if epoch.load(Ordering::Acquire) == queued_in {
-                let _ = results.send(Ok(result));
+                let _ = results.send(Ok(Answer::Rendered(result)));
             }
         });
         Ok(())

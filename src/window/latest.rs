@@ -53,13 +53,22 @@ impl<T> Latest<T> {
     /// Puts `value`, replacing any value not yet taken. Returns false (and drops the value)
     /// once the slot is closed.
     pub fn put(&self, value: T) -> bool {
+        self.put_merging(value, |_, _| {})
+    }
+
+    /// Like [`Latest::put`], but a value not yet taken is first handed to `merge` with the
+    /// new one, for what it carries that must not be lost with it (the edits a replaced
+    /// frame was the first to show).
+    pub fn put_merging(&self, mut value: T, merge: impl FnOnce(T, &mut T)) -> bool {
         let mut slot = self.lock();
         if slot.closed {
             return false;
         }
-        if slot.value.replace(value).is_some() {
+        if let Some(old) = slot.value.take() {
+            merge(old, &mut value);
             slot.replaced += 1;
         }
+        slot.value = Some(value);
         drop(slot);
         self.ready.notify_one();
         true
@@ -116,6 +125,18 @@ mod tests {
         assert_eq!(slot.take(), Some(3));
         assert_eq!(slot.take(), None);
         assert_eq!(slot.replaced(), 2);
+    }
+
+    #[test]
+    fn a_replaced_value_is_merged_into_the_newer_one() {
+        let slot = Latest::new();
+        let keep = |old: Vec<u32>, new: &mut Vec<u32>| new.splice(0..0, old).for_each(drop);
+        assert!(slot.put_merging(vec![1], keep));
+        assert!(slot.put_merging(vec![2, 3], keep));
+        assert_eq!(slot.take(), Some(vec![1, 2, 3]));
+        assert!(slot.put_merging(vec![4], keep));
+        assert_eq!(slot.take(), Some(vec![4]), "a value taken is not merged again");
+        assert_eq!(slot.replaced(), 1);
     }
 
     #[test]

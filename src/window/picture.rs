@@ -1,5 +1,5 @@
 //! What the window shows: an 8-bit picture at render resolution (the chosen view of a
-//! frame, made by [`crate::compose`]).
+//! frame, made by [`crate::master::compose`]).
 
 /// One picture, row-major RGBA8 (display-encoded), y = 0 the top row.
 #[derive(Clone, Debug, PartialEq, Eq)]

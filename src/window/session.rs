@@ -15,7 +15,7 @@ use std::time::Duration;
 use gridlight_actors::edit::Edit;
 use gridlight_actors::edit::{CameraEdit, EnvironmentEdit, MaterialEdit, ObjectEdit};
 use gridlight_actors::master::{MasterHandle, MasterReport};
-use gridlight_actors::sink::{FrameSink, ShownFrame, SinkError};
+use gridlight_actors::sink::{FrameSink, Preparer, ShownFrame, SinkError};
 use gridlight_actors::state::SceneState;
 use serde::Serialize;
 use winit::event_loop::EventLoopProxy;
@@ -54,7 +54,7 @@ impl WindowSink {
     fn compose(&mut self, frame: &ShownFrame) -> Result<ReadyFrame, SinkError> {
         let view =
             View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
-        let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.to_string()))?;
+        let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.into()))?;
         let picture = Picture::from_pixels(c.width, c.height, &c.rgba)
             .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
         let status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
@@ -65,10 +65,21 @@ impl WindowSink {
 impl FrameSink for WindowSink {
     fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
         let composed = self.compose(&frame)?;
-        if !self.frames.put(composed) || self.proxy.send_event(UserEvent::FrameReady).is_err() {
+        // A frame the window never draws hands the edits it was the first to show on to
+        // the newer one (whose state includes them): their latency ends when that is drawn.
+        let carry = |old: ReadyFrame, new: &mut ReadyFrame| {
+            new.status.edits_at.splice(0..0, old.status.edits_at).for_each(drop);
+        };
+        if !self.frames.put_merging(composed, carry)
+            || self.proxy.send_event(UserEvent::FrameReady).is_err()
+        {
             return Err(SinkError::Closed);
         }
         Ok(())
+    }
+
+    fn preparer(&mut self) -> Option<Preparer> {
+        self.composer.sink_preparer()
     }
 
     fn finish(&mut self) {

@@ -50,8 +50,9 @@ pub struct StatusView {
     /// The reconstructor and the window's graphics adapter, for the curious.
     pub reconstructor: String,
     pub adapter: String,
-    /// When the edits this frame shows first were made (the window stamps the latency
-    /// when it draws the frame).
+    /// When the edits this frame shows first were made, those of frames replaced before
+    /// the window took one included (the window stamps the latency when it presents the
+    /// frame).
     pub edits_at: Vec<Instant>,
     /// Edit-to-display latency: the last edit's, and the median and 95th percentile of
     /// recent ones, milliseconds (`None` before the first edit was shown).

@@ -6,8 +6,12 @@
 //! scene state (`RenderScene::set_state`) when a job names a version it has not rendered
 //! with yet, derives the job's pixels from the set number (pixel indices never travel),
 //! renders them, packs the reflected radiance (not demodulated: the master divides by its
-//! own G-buffer's albedo, `crate::compose`) as RGB9E5 and tags the result with the
+//! own G-buffer's albedo, `crate::master::compose`) as RGB9E5 and tags the result with the
 //! connection's key (`gridlight_actors::integrity`).
+//!
+//! A job whose state is older than the newest one submitted is not rendered but answered
+//! [`Answer::Superseded`] (a newer view came while it waited: its pixels would be stale,
+//! and the new view's job would wait behind it); the session tells the master.
 //!
 //! The thread lowers its own priority first (`priority`: `SCHED_IDLE` by default), so
 //! that the desk's owner never waits for it. When the worker pauses, jobs still queued
@@ -66,6 +70,17 @@ pub struct RenderJob {
     pub state: Arc<SceneState>,
 }
 
+/// What the renderer says about one job.
+#[derive(Debug)]
+pub enum Answer {
+    Rendered(JobResult),
+    /// Not rendered: a job of a newer scene state was submitted before it started.
+    Superseded {
+        frame: FrameNo,
+        set: SetNo,
+    },
+}
+
 /// Handle to a connection's renderer: its render thread, or the null renderer itself.
 ///
 /// The path tracer (and a null renderer with a delay) runs on its own thread; dropping
@@ -78,17 +93,22 @@ pub struct RenderThread {
 }
 
 enum Inner {
-    /// Jobs go with the epoch they were queued in; the thread skips stale ones.
-    Thread { jobs: std_mpsc::Sender<(u64, RenderJob)>, epoch: Arc<AtomicU64> },
+    /// Jobs go with the epoch they were queued in; the thread skips stale ones, and
+    /// answers those older than `newest` (the newest state version submitted) superseded.
+    Thread {
+        jobs: std_mpsc::Sender<(u64, RenderJob)>,
+        epoch: Arc<AtomicU64>,
+        newest: Arc<AtomicU64>,
+    },
     Inline {
         renderer: Box<Renderer>,
-        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     },
     Simulated {
         conn: Box<crate::simgrid::SimConnection>,
         table: Arc<gridlight_actors::sets::SetTable>,
         key: ResultKey,
-        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     },
 }
 
@@ -103,7 +123,7 @@ impl RenderThread {
         shared: Arc<Shared>,
         sets: SetsConfig,
         key: ResultKey,
-        results: mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     ) -> Result<Self, WorkerError> {
         if let RendererKind::Simulated(grid) = &kind {
             let res = grid.cache().resolution();
@@ -124,6 +144,8 @@ impl RenderThread {
         let (jobs, rx) = std_mpsc::channel::<(u64, RenderJob)>();
         let epoch = Arc::new(AtomicU64::new(0));
         let current = Arc::clone(&epoch);
+        let newest = Arc::new(AtomicU64::new(0));
+        let newest_seen = Arc::clone(&newest);
         std::thread::Builder::new()
             .name(format!("render {name}"))
             .spawn(move || {
@@ -135,13 +157,20 @@ impl RenderThread {
                     if queued_in != current.load(Ordering::Acquire) {
                         continue; // held when the worker paused: lost, never rendered
                     }
+                    if job.state.version < newest_seen.load(Ordering::Acquire) {
+                        let (frame, set) = (job.frame, job.set);
+                        if results.send(Ok(Answer::Superseded { frame, set })).is_err() {
+                            break;
+                        }
+                        continue;
+                    }
                     if !renderer.answer(&job, &results) {
                         break;
                     }
                 }
             })
             .map_err(|e| WorkerError::Render(format!("cannot start a render thread: {e}")))?;
-        Ok(Self { inner: Inner::Thread { jobs, epoch } })
+        Ok(Self { inner: Inner::Thread { jobs, epoch, newest } })
     }
 
     /// Drops every job queued and not yet started (the worker paused).
@@ -158,9 +187,11 @@ impl RenderThread {
     /// Queues a job behind the ones already held (or answers it, for the inline renderer).
     pub fn submit(&mut self, job: RenderJob) -> Result<(), WorkerError> {
         match &mut self.inner {
-            Inner::Thread { jobs, epoch } => jobs
-                .send((epoch.load(Ordering::Acquire), job))
-                .map_err(|_| WorkerError::Render("the render thread ended".into())),
+            Inner::Thread { jobs, epoch, newest } => {
+                newest.fetch_max(job.state.version, Ordering::AcqRel);
+                jobs.send((epoch.load(Ordering::Acquire), job))
+                    .map_err(|_| WorkerError::Render("the render thread ended".into()))
+            }
             Inner::Inline { renderer, results } => {
                 renderer.answer(&job, results);
                 Ok(())
@@ -202,9 +233,9 @@ impl Renderer {
     fn answer(
         &mut self,
         job: &RenderJob,
-        results: &mpsc::UnboundedSender<Result<JobResult, WorkerError>>,
+        results: &mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     ) -> bool {
-        let result = self.render(job);
+        let result = self.render(job).map(Answer::Rendered);
         let failed = result.is_err();
         if let Err(err) = &result {
             error!(frame = job.frame, set = job.set, cause = %err, "render failed");

@@ -35,7 +35,7 @@ use tracing::{debug, info, warn};
 
 use super::idle::Activity;
 use super::priority::Priority;
-use super::render::{RenderJob, RenderThread, RendererKind};
+use super::render::{Answer, RenderJob, RenderThread, RendererKind};
 use super::shared::Shared;
 use super::WorkerError;
 
@@ -231,7 +231,15 @@ where
                 Some(other) => return Err(unexpected("State, Job or Heartbeat", &other)),
             },
             result = results_rx.recv() => match result {
-                Some(Ok(result)) => {
+                Some(Ok(Answer::Superseded { frame, set })) => {
+                    // Lost like a paused worker's jobs when it is not live any more.
+                    if live.remove(&(frame, set)) {
+                        conn.send(WorkerMsg::Superseded { frame, set }).await?;
+                        conn.send(WorkerMsg::Ready { credits: 1 }).await?;
+                        debug!(frame, set, "held job superseded by a newer state's");
+                    }
+                }
+                Some(Ok(Answer::Rendered(result))) => {
                     let (frame, set) = (result.frame, result.set);
                     if !live.remove(&(frame, set)) {
                         debug!(frame, set, "result dropped: its job was held when the worker paused");

@@ -80,6 +80,16 @@ impl Proc {
         None
     }
 
+    /// (frame, set) of every job this worker was handed, in order (its debug log's
+    /// `job received` lines).
+    pub fn jobs_received(&self) -> Vec<(u64, u64)> {
+        self.stderr()
+            .lines()
+            .filter(|l| l.contains("job received"))
+            .filter_map(|l| Some((field(l, "frame")?, field(l, "set")?)))
+            .collect()
+    }
+
     /// Frames this worker sent results for, in order (from its debug log).
     pub fn results_sent(&self) -> Vec<u64> {
         self.stderr()
@@ -228,6 +238,22 @@ pub fn worker(master: SocketAddr, cache: &Path, name: &str, delay_ms: u32, extra
     ];
     args.extend_from_slice(extra);
     Proc::spawn(&args, &[("RUST_LOG", "info,gridlight::worker=debug")])
+}
+
+/// Checks the no-redundancy invariant from the workers' side: no (frame, set) was handed
+/// out twice, to one worker or to two, during one master run (frame numbers restart with
+/// the master). Returns how many jobs were handed out; panics on a repeat or on none.
+pub fn assert_nothing_handed_out_twice(workers: &[&Proc]) -> usize {
+    let mut seen = std::collections::BTreeMap::new();
+    for (w, proc) in workers.iter().enumerate() {
+        for job in proc.jobs_received() {
+            if let Some(first) = seen.insert(job, w) {
+                panic!("job (frame, set) = {job:?} was handed to worker {first} and again to worker {w}");
+            }
+        }
+    }
+    assert!(!seen.is_empty(), "no worker logged a job: the check would have seen nothing");
+    seen.len()
 }
 
 pub fn u(v: &Value, key: &str) -> u64 {

@@ -22,11 +22,27 @@ pub struct Xvfb {
 }
 
 impl Xvfb {
-    /// Starts a server with one screen of `width`×`height`; `None` without `Xvfb`.
-    pub fn start(width: u16, height: u16) -> Option<Self> {
-        let which = Command::new("sh").args(["-c", "command -v Xvfb"]).output().ok()?;
+    /// Starts a server with one screen of `width`×`height`, or `None` after saying (with
+    /// `gridlight::testing::skip`) that `test` cannot run without it; under `CI=true` a
+    /// missing Xvfb fails the test instead.
+    pub fn start_or_skip(test: &str, width: u16, height: u16) -> Option<Self> {
+        match Self::start(width, height) {
+            Ok(x) => Some(x),
+            Err(why) => {
+                gridlight::testing::skip(test, gridlight::testing::Missing::Display, why);
+                None
+            }
+        }
+    }
+
+    /// Starts a server with one screen of `width`×`height`; the error says why not.
+    pub fn start(width: u16, height: u16) -> Result<Self, String> {
+        let which = Command::new("sh")
+            .args(["-c", "command -v Xvfb"])
+            .output()
+            .map_err(|e| format!("cannot run sh: {e}"))?;
         if !which.status.success() {
-            return None;
+            return Err("Xvfb is not installed (apt-get install xvfb; .ci/run does)".into());
         }
         for n in 0..50 {
             let number = 140 + (std::process::id() as usize + n) % 400;
@@ -39,12 +55,12 @@ impl Xvfb {
                 .stdout(Stdio::null())
                 .stderr(Stdio::null())
                 .spawn()
-                .ok()?;
+                .map_err(|e| format!("cannot start Xvfb: {e}"))?;
             let socket = PathBuf::from(format!("/tmp/.X11-unix/X{number}"));
             let deadline = Instant::now() + Duration::from_secs(10);
             while Instant::now() < deadline {
                 if socket.exists() {
-                    return Some(Self { child, display: format!(":{number}"), width, height });
+                    return Ok(Self { child, display: format!(":{number}"), width, height });
                 }
                 if child.try_wait().ok().flatten().is_some() {
                     break; // lost a race for this display number
@@ -54,7 +70,7 @@ impl Xvfb {
             let _ = child.kill();
             let _ = child.wait();
         }
-        None
+        Err("no Xvfb display came up on 50 display numbers".into())
     }
 }
 

@@ -9,6 +9,7 @@
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
+use thiserror::Error;
 
 /// Parameters of the wait heuristic.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -41,8 +42,8 @@ impl Default for Pacing {
 }
 
 impl Pacing {
-    /// Checks the parameters; the message says what is wrong.
-    pub fn validate(&self) -> Result<(), String> {
+    /// Checks the parameters; the error says what is wrong.
+    pub fn validate(&self) -> Result<(), PacingError> {
         match *self {
             Pacing::Heuristic(h) => {
                 let ok = (0.0..=1.0).contains(&h.q_min)
@@ -54,17 +55,24 @@ impl Pacing {
                 if ok {
                     Ok(())
                 } else {
-                    Err(format!(
-                        "wait heuristic needs 0 <= q_min <= q_max <= 1 and 0 < i_min <= i_max < inf, got {h:?}"
-                    ))
+                    Err(PacingError::Heuristic(h))
                 }
             }
             Pacing::FixedFps(fps) if fps.is_finite() && fps > 0.0 => Ok(()),
-            Pacing::FixedFps(fps) => {
-                Err(format!("frame rate must be positive and finite, got {fps}"))
-            }
+            Pacing::FixedFps(fps) => Err(PacingError::FrameRate(fps)),
         }
     }
+}
+
+/// A pacing whose parameters make no sense.
+#[derive(Clone, Copy, Debug, PartialEq, Error)]
+pub enum PacingError {
+    #[error(
+        "wait heuristic needs 0 <= q_min <= q_max <= 1 and 0 < i_min <= i_max < inf, got {0:?}"
+    )]
+    Heuristic(Heuristic),
+    #[error("frame rate must be positive and finite, got {0}")]
+    FrameRate(f32),
 }
 
 /// What the display does with the current frame now.
@@ -177,9 +185,11 @@ mod tests {
     #[test]
     fn validation_names_bad_parameters() {
         assert!(H.validate().is_ok());
-        let bad = Pacing::Heuristic(Heuristic { q_min: 0.6, ..Heuristic::default() });
-        assert!(bad.validate().unwrap_err().contains("q_min"));
-        assert!(Pacing::FixedFps(0.0).validate().is_err());
+        let h = Heuristic { q_min: 0.6, ..Heuristic::default() };
+        let err = Pacing::Heuristic(h).validate().unwrap_err();
+        assert_eq!(err, PacingError::Heuristic(h));
+        assert!(err.to_string().contains("q_min"));
+        assert_eq!(Pacing::FixedFps(0.0).validate(), Err(PacingError::FrameRate(0.0)));
         assert!(Pacing::FixedFps(f32::NAN).validate().is_err());
     }
 }

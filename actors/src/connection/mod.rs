@@ -242,6 +242,10 @@ impl Connection {
                 Action::Duplicate(result) | Action::Unknown(result) => {
                     self.links.results_to.do_send(ResultArrived { conn: self.id, result })
                 }
+                Action::Superseded { frame, set } => {
+                    Counters::add(&self.counters.jobs_superseded, 1);
+                    tracing::debug!(conn = self.id, frame, set, "held job superseded");
+                }
                 Action::Reject(why) => self.close_rejected(why, ctx),
             }
         }

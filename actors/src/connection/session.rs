@@ -53,6 +53,9 @@ pub enum Action {
     /// A result for a job never given to this worker: dropped and counted (a
     /// [`Action::Reject`] follows).
     Unknown(JobResult),
+    /// The worker dropped a job it held without rendering it (a newer state's job came
+    /// first): lost like any other, its slot free for the `Ready` that follows.
+    Superseded { frame: FrameNo, set: SetNo },
     /// Send `Rejected` with this reason and close.
     Reject(Rejection),
 }
@@ -292,6 +295,12 @@ impl Session {
                     out.push(Action::RequestJobs(grant));
                 }
             }
+            (Phase::Work { .. }, WorkerMsg::Superseded { frame, set }) => {
+                // A job it does not hold (lost already, e.g. by a pause) changes nothing.
+                if self.held.remove(&(frame, set)).is_some() {
+                    out.push(Action::Superseded { frame, set });
+                }
+            }
             (Phase::Work { key }, WorkerMsg::Result(result)) => {
                 // Checked before anything else reads the result: a corrupted frame or
                 // set number must not be mistaken for a stale or foreign result.
@@ -403,6 +412,7 @@ fn kind(msg: &WorkerMsg) -> &'static str {
         WorkerMsg::Heartbeat => "Heartbeat",
         WorkerMsg::Paused { .. } => "Paused",
         WorkerMsg::Resumed => "Resumed",
+        WorkerMsg::Superseded { .. } => "Superseded",
     }
 }
 
@@ -589,7 +599,8 @@ mod tests {
     #[test]
     fn a_bad_result_is_rejected_with_its_kind() {
         let now = Instant::now();
-        let cases: [(fn(&Session, &ResultKey) -> WorkerMsg, RejectionKind); 4] = [
+        type Make = fn(&Session, &ResultKey) -> WorkerMsg;
+        let cases: [(Make, RejectionKind); 4] = [
             (|s, k| answer(s, k, 0, 9, 1), RejectionKind::SetRange),
             (|s, k| answer(s, k, 0, 0, 2), RejectionKind::StateVersion),
             (

@@ -9,6 +9,7 @@
 //! [`wait_heuristic`]: crate::assembler::wait_heuristic
 
 pub mod edit_latency;
+pub mod new_view;
 pub mod sink;
 pub mod stats;
 
@@ -22,15 +23,18 @@ use actix::prelude::*;
 
 use crate::assembler::accumulate::Accumulator;
 use crate::assembler::frame_table::ClosedFrame;
-use crate::assembler::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
+use crate::assembler::wait_heuristic::{
+    decide, interaction, quality, Decision, Pacing, PacingError,
+};
 use crate::assembler::CloseFrame;
 use crate::connection::workers::WorkerTable;
-use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, SinkOutcome};
+use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, Preparer, SinkOutcome};
 use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
-use crate::scene::state::StateVersion;
+use crate::scene::state::{SceneState, StateVersion};
 use crate::scheduler::FrameDisplayed;
 use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wire::protocol::FrameNo;
+use new_view::NewView;
 
 /// Frames handed to the sink thread and not yet shown, at most, by default: two keep a
 /// fast sink busy. An interactive master uses one ([`PresenterConfig::sink_in_flight`]): a
@@ -54,10 +58,12 @@ pub struct FrameProgress {
 /// queued jobs were discarded, so only results already held by workers can still come.
 /// The display shows such a frame at once with what it has (or skips it when empty)
 /// instead of waiting for them.
-#[derive(Message, Debug, Clone, Copy)]
+#[derive(Message, Debug, Clone)]
 #[rtype(result = "()")]
 pub struct FramesOutdated {
     pub before: FrameNo,
+    /// The new state, which the frames from `before` on have.
+    pub state: Arc<SceneState>,
 }
 
 /// To the display: frames before `before` lost their queued jobs (the scheduler
@@ -84,6 +90,20 @@ pub struct Shutdown;
 pub struct Report {
     pub state: Mutex<ReportState>,
     pub changed: Condvar,
+}
+
+impl Report {
+    /// Marks the run finished (keeping the first error) and wakes every waiter.
+    pub fn finish(&self, error: Option<String>) {
+        {
+            let mut r = self.state.lock().unwrap_or_else(|p| p.into_inner());
+            r.finished = true;
+            if r.error.is_none() {
+                r.error = error;
+            }
+        }
+        self.changed.notify_all();
+    }
 }
 
 #[derive(Debug, Default, Clone)]
@@ -120,6 +140,8 @@ pub struct Presenter {
     /// and left out of the frame time, so lost work cannot stretch I_max (each skip at
     /// I_max would otherwise multiply the next frame's wait by I_max).
     abandoned_before: FrameNo,
+    /// The last frame shown (the rule around edits, [`NewView`]).
+    last_shown: Option<FrameNo>,
     /// Frames below this one have an outdated scene state: shown at once with what they
     /// have (skipped when empty), never waited for, and left out of the frame time.
     outdated_before: FrameNo,
@@ -133,6 +155,8 @@ pub struct Presenter {
     /// Heuristic deadline timer.
     timer: Option<SpawnHandle>,
     sink: Option<Box<dyn FrameSink>>,
+    /// The sink's, told every new scene state at once (G-buffers computed ahead).
+    prepare: Option<Preparer>,
     sink_tx: Option<SyncSender<PackedShownFrame>>,
     sink_thread: Option<JoinHandle<()>>,
     sink_in_flight: usize,
@@ -178,6 +202,7 @@ impl Presenter {
             last_closed: None,
             abandoned_before: 0,
             outdated_before: 0,
+            last_shown: None,
             last_close_at: Instant::now(),
             closing: false,
             skipped_since_show: 0,
@@ -186,6 +211,7 @@ impl Presenter {
             accum: Accumulator::default(),
             timer: None,
             sink: Some(sink),
+            prepare: None,
             sink_tx: None,
             sink_thread: None,
             sink_in_flight: 0,
@@ -206,7 +232,8 @@ impl Actor for Presenter {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
-        let Some(sink) = self.sink.take() else { return };
+        let Some(mut sink) = self.sink.take() else { return };
+        self.prepare = sink.preparer();
         let me = ctx.address();
         let capacity = self.max_sink_in_flight;
         match spawn_sink(sink, capacity, move |outcome| me.do_send(SinkDone(outcome))) {
@@ -247,18 +274,18 @@ impl Handler<SinkDone> for Presenter {
         self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
         match msg.0 {
             Ok(()) => self.evaluate(ctx),
-            Err(e) => self.fail(e),
+            Err(e) => self.fail(e.to_string()),
         }
     }
 }
 
 /// Changes how frames are paced from now on (the window's sliders).
 #[derive(Message)]
-#[rtype(result = "Result<(), String>")]
+#[rtype(result = "Result<(), PacingError>")]
 pub struct SetPacing(pub Pacing);
 
 impl Handler<SetPacing> for Presenter {
-    type Result = Result<(), String>;
+    type Result = Result<(), PacingError>;
     fn handle(&mut self, msg: SetPacing, ctx: &mut Context<Self>) -> Self::Result {
         msg.0.validate()?;
         self.pacing = msg.0;
@@ -286,6 +313,9 @@ impl Handler<FramesAbandoned> for Presenter {
 impl Handler<FramesOutdated> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: FramesOutdated, ctx: &mut Context<Self>) {
+        if let Some(prepare) = &self.prepare {
+            prepare(msg.state);
+        }
         self.outdated_before = self.outdated_before.max(msg.before);
         self.evaluate(ctx);
     }
@@ -318,23 +348,19 @@ impl Presenter {
             _ => queued,
         };
         let elapsed = start.elapsed();
-        let outdated = frame < self.outdated_before;
-        let abandoned = frame < self.abandoned_before || outdated;
-        // An abandoned frame is judged as if its time were up: shown if good enough. An
-        // outdated one is never waited for: the newest outdated frame with results is
-        // shown at once with what came back (its pixels are the newest view the grid
-        // has; during a steady drag no frame would ever reach Q_min otherwise), older
-        // outdated ones are skipped (showing them would only cost the sink a frame and
-        // delay the newer one).
+        // Around an edit the new view comes first ([`NewView`]): frames of an outdated
+        // state are never waited for, the new state's first frame is shown with its first
+        // result. Those decisions are the edit's, left out of the frame time as abandoned
+        // frames are (judged as if their time were up: shown if good enough).
+        let later_has_results = self.pending.range(frame + 1..).any(|(_, later)| later.back > 0);
+        let view = NewView { outdated_before: self.outdated_before, last_shown: self.last_shown };
+        let around_edit = view.decide(frame, p.back, later_has_results);
+        let abandoned = frame < self.abandoned_before || around_edit.is_some();
         let judged_at = if abandoned { Duration::MAX } else { elapsed };
-        let superseded = outdated
-            && self.pending.range(frame + 1..self.outdated_before).any(|(_, later)| later.back > 0);
         let decision = match contain(|| {
             decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time)
         }) {
-            Ok(_) if outdated && p.back > 0 && !superseded => Decision::Show,
-            Ok(_) if outdated => Decision::Skip,
-            Ok(d) => d,
+            Ok(d) => around_edit.unwrap_or(d),
             Err(msg) => return self.restart_after(&msg, ctx),
         };
         if let Some(t) = self.timer.take() {
@@ -386,6 +412,7 @@ impl Presenter {
                 act.displayed_to.do_send(FrameDisplayed { frame });
                 match res {
                     Ok(Some(closed)) if !skip => {
+                        act.last_shown = Some(frame);
                         if !abandoned {
                             act.last_frame_time = elapsed;
                         }
@@ -455,6 +482,8 @@ impl Presenter {
             results_used: used,
             results_returned: accepted + late,
             useful_fraction: useful_fraction(used, accepted, late),
+            jobs_discarded_stale: Counters::get(&c.jobs_discarded_stale),
+            jobs_superseded: Counters::get(&c.jobs_superseded),
         };
         stats.stamp_edit_latency(Instant::now());
         let frame = PackedShownFrame {
@@ -497,14 +526,7 @@ impl Presenter {
                 tracing::error!("frame sink thread panicked");
             }
         }
-        {
-            let mut r = self.report.state.lock().unwrap_or_else(|p| p.into_inner());
-            r.finished = true;
-            if error.is_some() {
-                r.error = error;
-            }
-        }
-        self.report.changed.notify_all();
+        self.report.finish(error);
         System::current().stop();
     }
 

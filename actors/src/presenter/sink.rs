@@ -98,19 +98,38 @@ pub enum SinkError {
     /// The window (or whatever consumes frames) went away.
     #[error("the frame consumer was closed")]
     Closed,
+    /// Anything else the sink's own code reports (composing, writing a file, ...).
     #[error("{0}")]
-    Other(String),
+    Other(#[source] Box<dyn std::error::Error + Send + Sync>),
 }
+
+/// Told each new scene state as soon as the scene changes (on the actor thread: it must
+/// not block), so that a sink can prepare what frames of that state will need.
+pub type Preparer = Box<dyn Fn(Arc<SceneState>) + Send>;
 
 /// Consumes shown frames, in frame order, on the sink thread.
 pub trait FrameSink: Send + 'static {
     fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError>;
+    /// What to tell about new scene states before any of their frames is shown (the
+    /// compose computes their G-buffers ahead); asked once, before the sink thread starts.
+    fn preparer(&mut self) -> Option<Preparer> {
+        None
+    }
     /// Called once after the last frame, when the master stops.
     fn finish(&mut self) {}
 }
 
 /// What the sink thread reports back after each frame.
-pub type SinkOutcome = Result<(), String>;
+pub type SinkOutcome = Result<(), SinkFailure>;
+
+/// A frame the sink did not show; the master stops on it.
+#[derive(Debug, Error)]
+pub enum SinkFailure {
+    #[error("frame sink failed on frame {frame}: {source}")]
+    Failed { frame: FrameNo, source: SinkError },
+    #[error("frame sink panicked on frame {frame}: {panic}")]
+    Panicked { frame: FrameNo, panic: String },
+}
 
 /// Starts the sink thread: it unpacks and shows every frame received on the returned sender and
 /// calls `done` after each; when the sender is dropped it calls `finish` and ends.
@@ -126,8 +145,8 @@ pub fn spawn_sink(
             let n = frame.frame;
             let outcome = match contain(|| sink.show(frame.unpack())) {
                 Ok(Ok(())) => Ok(()),
-                Ok(Err(e)) => Err(format!("frame sink failed on frame {n}: {e}")),
-                Err(panic) => Err(format!("frame sink panicked on frame {n}: {panic}")),
+                Ok(Err(source)) => Err(SinkFailure::Failed { frame: n, source }),
+                Err(panic) => Err(SinkFailure::Panicked { frame: n, panic }),
             };
             let failed = outcome.is_err();
             done(outcome);

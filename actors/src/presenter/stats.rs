@@ -39,6 +39,8 @@ pub struct Counters {
     pub jobs_handed_out: AtomicU64,
     /// Queued jobs discarded because the scene state changed before they were handed out.
     pub jobs_discarded_stale: AtomicU64,
+    /// Held jobs a worker dropped unrendered because a newer state's job came first.
+    pub jobs_superseded: AtomicU64,
     /// Hand-outs of a (frame, set) that had been handed out before; the no-redundancy
     /// invariant (at most S jobs per frame) says this stays 0.
     pub jobs_handed_twice: AtomicU64,
@@ -46,6 +48,9 @@ pub struct Counters {
     pub connections_rejected: AtomicU64,
     /// Panics contained at an actor boundary.
     pub panics_contained: AtomicU64,
+    /// Why supervision gave up (an actor past the restart intensity), once it did: the
+    /// master thread puts it in the report when the actor system has stopped.
+    pub escalation: Mutex<Option<String>>,
     /// Connections ended on an error, by kind
     /// ([`RejectionKind::as_str`]); bounded: the kinds are fixed.
     pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
@@ -128,6 +133,11 @@ pub struct FrameStats {
     /// `results_used / results_returned`: the share of the grid's returned work that reached
     /// an image (DESIGN.md decision 8); `None` (JSON `null`) before any result returned.
     pub useful_fraction: Option<f64>,
+    /// Queued jobs discarded so far because the scene state changed before they were
+    /// handed out (never handed out afterwards).
+    pub jobs_discarded_stale: u64,
+    /// Held jobs workers dropped unrendered so far, a newer state's job having come first.
+    pub jobs_superseded: u64,
 }
 
 impl FrameStats {

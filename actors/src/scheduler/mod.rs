@@ -160,7 +160,8 @@ impl Handler<StateChanged> for Scheduler {
             let discarded = s.queue.discard_outdated();
             Counters::add(&s.counters.jobs_discarded_stale, discarded as u64);
             // Every frame scheduled so far is of an older version.
-            s.links.outdated_to.do_send(FramesOutdated { before: s.queue.next_frame() });
+            let (before, state) = (s.queue.next_frame(), Arc::clone(s.queue.state()));
+            s.links.outdated_to.do_send(FramesOutdated { before, state });
             tracing::debug!(discarded, "queued jobs of an outdated state discarded");
             s.dispatch();
         });

@@ -12,8 +12,13 @@
 //! structs; a contained panic makes them replace that struct with a fresh one (keeping
 //! only the monotonic counters: frame numbers, the displayed boundary) after the
 //! back-off. A connection actor's state is its socket: restarting it means ending it —
-//! its jobs are not recomputed — and serving the worker again when it reconnects; the
-//! listener applies the same policy per peer address to those reconnects.
+//! its jobs are not recomputed — and serving the worker again when it reconnects. (A
+//! per-peer back-off for workers whose connections keep failing is not written yet.)
+//!
+//! Escalation: past the intensity, [`after_panic`] records why in
+//! `Counters::escalation` (the actor, its panics, the last one) and stops the actor
+//! system with code 1; the master thread then finishes the report with that error and
+//! `MasterHandle::stop` returns it, so a headless master exits non-zero naming the actor.
 
 use std::any::Any;
 use std::collections::VecDeque;
@@ -79,6 +84,11 @@ impl RestartTracker {
         }
     }
 
+    /// The policy this tracker applies.
+    pub fn policy(&self) -> &RestartPolicy {
+        &self.policy
+    }
+
     /// Failures within the window as of the last one.
     pub fn recent_failures(&self) -> usize {
         self.failures.len()
@@ -139,6 +149,13 @@ where
                 cause = message,
                 "restart intensity exceeded; stopping the master"
             );
+            let why = format!(
+                "the {who} panicked {} times within {:?} (more than its restart intensity allows); last panic: {message}",
+                tracker.recent_failures(),
+                tracker.policy().window,
+            );
+            let mut slot = counters.escalation.lock().unwrap_or_else(|p| p.into_inner());
+            slot.get_or_insert(why);
             actix::System::current().stop_with_code(1);
             false
         }

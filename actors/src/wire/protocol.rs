@@ -53,6 +53,12 @@
 //!   updates the reason.
 //! - **A paused worker is not a live worker**: statistics count it apart, with its reason.
 //!
+//! # Superseded jobs
+//! A worker that receives a job of a newer state version drops the jobs of older
+//! versions it holds and has not started, and says so with [`WorkerMsg::Superseded`]
+//! (then `Ready`): after an edit it renders the new view next instead of finishing the
+//! old one's queue. The master forgets the job (lost, never redone).
+//!
 //! Either side sends [`WorkerMsg::Heartbeat`]/[`MasterMsg::Heartbeat`] when it has
 //! been quiet for [`HEARTBEAT_INTERVAL`]; a peer silent for [`PEER_TIMEOUT`] is gone.
 //!
@@ -74,7 +80,8 @@ use crate::scene::state::{SceneState, StateVersion};
 /// 6: `WorkerMsg::Paused` / `WorkerMsg::Resumed` (workers that give way to their desk's owner).
 /// 7: results carry reflected radiance, no longer divided by the albedo (the master
 ///    demodulates by its G-buffer's); an older worker's pixels would be wrong.
-pub const PROTOCOL_VERSION: u32 = 7;
+/// 8: `WorkerMsg::Superseded` (a held job dropped unrendered for a newer state's job).
+pub const PROTOCOL_VERSION: u32 = 8;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
@@ -232,6 +239,11 @@ pub enum WorkerMsg {
     Paused { reason: PauseReason },
     /// The worker takes jobs again; `Ready` follows.
     Resumed,
+    /// A held job the worker dropped without rendering it: a job of a newer scene state
+    /// came before it started, so its pixels would only show an outdated view (the paper
+    /// discards stale jobs). It is lost like any other, never handed out again; a `Ready`
+    /// returns its credit.
+    Superseded { frame: FrameNo, set: SetNo },
 }
 
 /// Why a worker paused: its desk's owner is using the machine.

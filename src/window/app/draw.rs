@@ -72,12 +72,9 @@ impl App {
         if let Some(frame) = self.frames.take() {
             let now = Instant::now();
             self.fps.tick(now);
-            // Drawn now: the edits this frame shows first end their latency here. Edits of
-            // a frame replaced before it was drawn are not counted (a headless run's
-            // stats.jsonl has every edit).
-            for at in &frame.status.edits_at {
-                self.latency.record(now.saturating_duration_since(*at).as_secs_f32() * 1e3);
-            }
+            // The edits this frame shows first (with those of frames replaced before the
+            // window took one) end their latency when it is presented (`draw`).
+            self.edits_unpresented.extend_from_slice(&frame.status.edits_at);
             self.status = StatusView {
                 fps: self.fps.fps(),
                 frames_replaced: self.frames.replaced(),
@@ -98,6 +95,20 @@ impl App {
         if self.keys.any() || !self.edits.is_empty() {
             self.request_redraw();
         }
+    }
+
+    /// The picture of the newest frame was just presented: the edit-to-display latency of
+    /// the edits it shows first ends now (a headless master's ends when it composed the
+    /// frame: there is nothing more to present).
+    fn end_edit_latencies(&mut self) {
+        if self.edits_unpresented.is_empty() {
+            return;
+        }
+        let now = Instant::now();
+        for at in self.edits_unpresented.drain(..) {
+            self.latency.record(now.saturating_duration_since(at).as_secs_f32() * 1e3);
+        }
+        self.status.edit_latency_ms = self.latency.summary();
     }
 
     pub(super) fn draw(&mut self, s: &mut Surface) -> Vec<PanelAction> {
@@ -188,6 +199,7 @@ impl App {
         s.gpu.queue.submit(extra.into_iter().chain([encoder.finish()]));
         s.window.pre_present_notify();
         s.gpu.queue.present(frame);
+        self.end_edit_latencies();
         free.iter().for_each(|id| s.egui_renderer.free_texture(id));
         let repaint_soon = output
             .viewport_output

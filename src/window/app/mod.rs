@@ -70,6 +70,8 @@ pub struct App {
     status: StatusView,
     fps: FpsMeter,
     latency: LatencyMeter,
+    /// Edits of frames taken but not yet presented: their latency ends at the present.
+    edits_unpresented: Vec<Instant>,
     /// The newest composed frame, kept for redraws, screenshots and picking.
     shown: Option<ReadyFrame>,
     /// Where the picture was drawn last, in physical pixels.
@@ -115,6 +117,7 @@ impl App {
             status: StatusView::default(),
             fps: FpsMeter::new(Duration::from_secs(2)),
             latency: LatencyMeter::default(),
+            edits_unpresented: Vec::new(),
             shown: None,
             picture_rect: None,
             message: String::new(),

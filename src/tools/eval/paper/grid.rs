@@ -334,7 +334,7 @@ impl FrameSink for RecordingSink {
             (Some(composer), Some(gold)) => {
                 let composed = composer
                     .compose(&frame, View::Final)
-                    .map_err(|e| SinkError::Other(e.to_string()))?;
+                    .map_err(|e| SinkError::Other(Box::new(e)))?;
                 let linear = composed.linear.unwrap_or_default();
                 let res = frame.state.resolution;
                 Some(super::super::compare(gold, &linear, res.width, res.height, 0.0).flip)

@@ -44,6 +44,12 @@ pub(super) fn signal(child: &Child, sig: libc::c_int) {
 }
 
 impl Harness {
+    /// Workers started from now on take `ms` per job (the null renderer's sleep); those
+    /// running keep theirs.
+    pub fn set_render_delay(&mut self, ms: u32) {
+        self.config.render_delay_ms = ms;
+    }
+
     /// Starts one more worker process; every other one goes through the proxy.
     pub fn spawn_worker(&mut self) -> Result<u32, HarnessError> {
         let proxied = self.proxy.is_some() && self.spawned % 2 == 1;
