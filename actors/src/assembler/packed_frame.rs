@@ -120,29 +120,34 @@ mod sse2 {
     /// Each pointer must be valid for writing one `Vec3`.
     #[inline(always)]
     pub unsafe fn decode_store4(words: &[u32; 4], dst: [*mut MaybeUninit<Vec3>; 4]) {
-        let w = _mm_loadu_si128(words.as_ptr() as *const __m128i);
-        // 2^(exp - 24) from its bits: (exp - 24 + 127) << 23, as in `decode_rgb9e5`.
-        let exp = _mm_srli_epi32::<27>(w);
-        let scale = _mm_castsi128_ps(_mm_slli_epi32::<23>(_mm_add_epi32(exp, _mm_set1_epi32(103))));
-        let m = _mm_set1_epi32(0x1ff);
-        let channel = |v: __m128i| _mm_mul_ps(_mm_cvtepi32_ps(_mm_and_si128(v, m)), scale);
-        let r = channel(w);
-        let g = channel(_mm_srli_epi32::<9>(w));
-        let b = channel(_mm_srli_epi32::<18>(w));
-        // Pairs (r, g) and the b lanes as 64-bit halves, written unaligned (a `Vec3` is
-        // only 4-aligned): lane i of a half is pixel i's.
-        let rg01 = _mm_castps_si128(_mm_unpacklo_ps(r, g)); // r0 g0 r1 g1
-        let rg23 = _mm_castps_si128(_mm_unpackhi_ps(r, g)); // r2 g2 r3 g3
-        let b = _mm_castps_si128(b);
-        let lo = |v: __m128i| _mm_cvtsi128_si64(v) as u64;
-        let hi = |v: __m128i| _mm_cvtsi128_si64(_mm_unpackhi_epi64(v, v)) as u64;
-        let (b01, b23) = (lo(b), hi(b));
-        let rg = [lo(rg01), hi(rg01), lo(rg23), hi(rg23)];
-        let blue = [b01 as u32, (b01 >> 32) as u32, b23 as u32, (b23 >> 32) as u32];
-        for i in 0..4 {
-            let p = dst[i] as *mut u8;
-            p.cast::<u64>().write_unaligned(rg[i]);
-            p.add(8).cast::<u32>().write_unaligned(blue[i]);
+        // SAFETY: SSE2 is part of x86_64 (the intrinsics need no other feature); the caller
+        // guarantees that each pointer is valid for writing one `Vec3`.
+        unsafe {
+            let w = _mm_loadu_si128(words.as_ptr() as *const __m128i);
+            // 2^(exp - 24) from its bits: (exp - 24 + 127) << 23, as in `decode_rgb9e5`.
+            let exp = _mm_srli_epi32::<27>(w);
+            let scale =
+                _mm_castsi128_ps(_mm_slli_epi32::<23>(_mm_add_epi32(exp, _mm_set1_epi32(103))));
+            let m = _mm_set1_epi32(0x1ff);
+            let channel = |v: __m128i| _mm_mul_ps(_mm_cvtepi32_ps(_mm_and_si128(v, m)), scale);
+            let r = channel(w);
+            let g = channel(_mm_srli_epi32::<9>(w));
+            let b = channel(_mm_srli_epi32::<18>(w));
+            // Pairs (r, g) and the b lanes as 64-bit halves, written unaligned (a `Vec3` is
+            // only 4-aligned): lane i of a half is pixel i's.
+            let rg01 = _mm_castps_si128(_mm_unpacklo_ps(r, g)); // r0 g0 r1 g1
+            let rg23 = _mm_castps_si128(_mm_unpackhi_ps(r, g)); // r2 g2 r3 g3
+            let b = _mm_castps_si128(b);
+            let lo = |v: __m128i| _mm_cvtsi128_si64(v) as u64;
+            let hi = |v: __m128i| _mm_cvtsi128_si64(_mm_unpackhi_epi64(v, v)) as u64;
+            let (b01, b23) = (lo(b), hi(b));
+            let rg = [lo(rg01), hi(rg01), lo(rg23), hi(rg23)];
+            let blue = [b01 as u32, (b01 >> 32) as u32, b23 as u32, (b23 >> 32) as u32];
+            for i in 0..4 {
+                let p = dst[i] as *mut u8;
+                p.cast::<u64>().write_unaligned(rg[i]);
+                p.add(8).cast::<u32>().write_unaligned(blue[i]);
+            }
         }
     }
 }

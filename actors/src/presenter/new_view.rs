@@ -1,4 +1,4 @@
-//! The display's rule for the frames around a change of the scene state: the new view is
+//! The presenter's rule for the frames around a change of the scene state: the new view is
 //! shown as soon as any of it came back, and no frame of an older view is composed once a
 //! newer frame has results (issue 18, edit-to-display latency).
 //!
@@ -11,6 +11,7 @@
 //!   what it has (skipped when empty);
 //! - a frame of the new state is shown as soon as it has a result, and skipped when it has
 //!   none while a later frame has some.
+//!
 //! Once it has been shown the heuristic decides again, and the frames of that state
 //! accumulate (progressive refinement). Frames decided by this rule are left out of the
 //! heuristic's frame time, like abandoned ones: their time is the edit's, not the grid's.
