@@ -11,6 +11,21 @@ pub fn padded_row(width: u32, texel_bytes: u32) -> u32 {
         * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
 }
 
+/// Maps `slice` for reading and waits until the device has finished with it.
+pub fn map_read_blocking(device: &wgpu::Device, slice: &wgpu::BufferSlice) -> Result<(), GpuError> {
+    let (tx, rx) = mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        // The receiver outlives the poll below; a failed send only means it gave up.
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::Readback(e.to_string()))?
+        .map_err(|e| GpuError::Readback(e.to_string()))
+}
+
 /// A staging buffer sized for one texture of the given texel size.
 #[derive(Debug)]
 pub struct Staging {
@@ -61,17 +76,7 @@ impl Staging {
         mut f: impl FnMut(usize, &[u8]),
     ) -> Result<(), GpuError> {
         let slice = self.buffer.slice(..);
-        let (tx, rx) = mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            // The receiver outlives the poll below; a failed send only means it gave up.
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        rx.recv()
-            .map_err(|e| GpuError::Readback(e.to_string()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        map_read_blocking(device, &slice)?;
         {
             let view = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
             let stride = padded_row(self.width, self.texel_bytes) as usize;

@@ -17,7 +17,7 @@ use super::pass::remodulate::DISPLAY;
 use super::pass::{self, PassConsts, Uniforms};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
 use crate::gpu::compute::ComputePass;
-use crate::gpu::readback::Staging;
+use crate::gpu::readback::{map_read_blocking, Staging};
 use crate::gpu::{GpuContext, GpuError};
 
 const F32X4: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -200,16 +200,7 @@ impl Timer {
 
     fn read_ms(&self, device: &wgpu::Device) -> Result<f64, GpuError> {
         let slice = self.staging.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        rx.recv()
-            .map_err(|e| GpuError::Readback(e.to_string()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        map_read_blocking(device, &slice)?;
         let ticks = {
             let v = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
             let t: &[u64] = bytemuck::cast_slice(&v[..16]);
