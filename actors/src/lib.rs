@@ -48,7 +48,7 @@ pub mod scheduler;
 pub mod supervision;
 pub mod wire;
 
-pub use assembler::{packed_frame, wait_heuristic};
+pub use assembler::{accumulation, packed_frame, wait_heuristic};
 pub use discovery::announcer;
 pub use presenter::{sink, stats};
 pub use scene::{asset_store, edit, script, state};
