@@ -302,17 +302,19 @@ impl Presenter {
             owners: closed.owners,
             stats: stats.clone(),
         };
-        let taken = match self.sink_tx.as_ref().map(|tx| tx.try_send(frame)) {
-            Some(Ok(())) => true,
-            // Cannot happen while the assembler bounds the frames in flight; never block here.
-            Some(Err(TrySendError::Full(_))) => {
-                tracing::warn!(frame = stats.frame, "sink full; frame not shown");
-                false
-            }
-            Some(Err(TrySendError::Disconnected(_))) => {
-                tracing::warn!("sink thread gone");
-                false
-            }
+        let taken = match &self.sink_tx {
+            Some(tx) => match tx.try_send(frame) {
+                Ok(()) => true,
+                // Cannot happen while the assembler bounds the frames in flight; never block.
+                Err(TrySendError::Full(_)) => {
+                    tracing::warn!(frame = stats.frame, "sink full; frame not shown");
+                    false
+                }
+                Err(TrySendError::Disconnected(_)) => {
+                    tracing::warn!("sink thread gone");
+                    false
+                }
+            },
             None => false,
         };
         {
