@@ -22,7 +22,7 @@ use crate::presenter::stats::Counters;
 use crate::presenter::FrameProgress;
 use crate::scene::state::SceneState;
 use crate::scheduler::sets::SetTable;
-use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{FrameNo, JobResult, SetNo};
 
@@ -64,7 +64,7 @@ pub struct Assembler {
     counters: Arc<Counters>,
     /// Late results are counted per worker too (the status panel).
     workers: Arc<WorkerTable>,
-    restarts: RestartTracker,
+    supervision: Supervision,
 }
 
 impl Assembler {
@@ -78,21 +78,37 @@ impl Assembler {
         Self {
             table: FrameTable::new(sets),
             progress_to,
+            supervision: Supervision::restarting(ActorKind::Assembler, policy, counters.clone()),
             counters,
             workers,
-            restarts: RestartTracker::new(policy),
         }
     }
 }
 
 impl Actor for Assembler {
     type Context = Context<Self>;
+
+    fn started(&mut self, ctx: &mut Context<Self>) {
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for Assembler {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    /// A fresh table: frames in flight are lost (and will be skipped), displayed
+    /// frames stay refused.
+    fn restart(&mut self, _: &mut Context<Self>) {
+        self.table = self.table.restarted();
+    }
 }
 
 impl Handler<FrameScheduled> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: FrameScheduled, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |a| {
+        self.guarded(ctx, |a, _| {
             a.table.open(msg.frame, msg.state);
             a.report_progress(msg.frame);
         });
@@ -102,7 +118,7 @@ impl Handler<FrameScheduled> for Assembler {
 impl Handler<JobsHandedOut> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: JobsHandedOut, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |a| {
+        self.guarded(ctx, |a, _| {
             for (frame, set) in msg.jobs {
                 let first = !a.table.started(frame);
                 if a.table.handed_out(frame, set, msg.conn) {
@@ -120,7 +136,7 @@ impl Handler<JobsHandedOut> for Assembler {
 impl Handler<ResultArrived> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: ResultArrived, ctx: &mut Context<Self>) {
-        self.guarded(ctx, move |a| {
+        self.guarded(ctx, move |a, _| {
             let JobResult { frame, set, state_version, radiance, .. } = msg.result;
             let admission = a.table.accept(msg.conn, frame, set, state_version, radiance);
             let c = &a.counters;
@@ -153,16 +169,14 @@ impl Handler<ResultArrived> for Assembler {
 impl Handler<CloseFrame> for Assembler {
     type Result = Option<ClosedFrame>;
     fn handle(&mut self, msg: CloseFrame, ctx: &mut Context<Self>) -> Option<ClosedFrame> {
-        let mut out = None;
-        self.guarded(ctx, |a| out = a.table.close(msg.frame));
-        out
+        self.guarded(ctx, |a, _| a.table.close(msg.frame)).flatten()
     }
 }
 
 impl Handler<InjectPanic> for Assembler {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |_| panic!("injected panic in the frame assembler"));
+        self.guarded(ctx, |_, _| panic!("injected panic in the frame assembler"));
     }
 }
 
@@ -174,17 +188,6 @@ impl Assembler {
         {
             let started = self.table.started(frame);
             self.progress_to.do_send(FrameProgress { frame, state_version, back, total, started });
-        }
-    }
-
-    /// Runs a handler body; a panic restarts the table (frames in flight are lost and
-    /// will be skipped, displayed frames stay refused) after the policy's back-off.
-    fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self)) {
-        if let Err(msg) = contain(|| f(self)) {
-            let counters = self.counters.clone();
-            if after_panic("frame assembler", &msg, &mut self.restarts, &counters, ctx) {
-                self.table = self.table.restarted();
-            }
         }
     }
 }

@@ -32,7 +32,9 @@ use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, Preparer, 
 use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
 use crate::scene::state::{SceneState, StateVersion};
 use crate::scheduler::FrameDisplayed;
-use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{
+    ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
+};
 use crate::wire::protocol::FrameNo;
 use new_view::NewView;
 
@@ -128,6 +130,21 @@ struct Pending {
     started_at: Option<Instant>,
 }
 
+/// A frame being closed, while the assembler's answer is on its way.
+#[derive(Clone, Copy, Debug)]
+struct Closing {
+    frame: FrameNo,
+    /// Skipped, not shown.
+    skip: bool,
+    /// Its time is not the workers' frame time.
+    abandoned: bool,
+    elapsed: Duration,
+    p: Pending,
+    /// Q_t and I_t when it was decided.
+    q: f64,
+    i: f64,
+}
+
 /// Pacing, the frames being waited on, accumulation and the sink.
 pub struct Presenter {
     pacing: Pacing,
@@ -168,7 +185,7 @@ pub struct Presenter {
     /// The connected workers: the paused ones are listed in each frame's statistics.
     workers: Arc<WorkerTable>,
     report: Arc<Report>,
-    restarts: RestartTracker,
+    supervision: Supervision,
     finished: bool,
     /// When the display was made (the master's start), for `shown_at_ms`.
     started: Instant,
@@ -218,10 +235,14 @@ impl Presenter {
             max_sink_in_flight: config.sink_in_flight.max(1),
             close_to,
             displayed_to,
+            supervision: Supervision::restarting(
+                ActorKind::Presenter,
+                config.policy,
+                counters.clone(),
+            ),
             counters,
             workers,
             report,
-            restarts: RestartTracker::new(config.policy),
             finished: false,
             started: Instant::now(),
         }
@@ -232,23 +253,49 @@ impl Actor for Presenter {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
-        let Some(mut sink) = self.sink.take() else { return };
-        self.prepare = sink.preparer();
-        let me = ctx.address();
-        let capacity = self.max_sink_in_flight;
-        match spawn_sink(sink, capacity, move |outcome| me.do_send(SinkDone(outcome))) {
-            Ok((tx, thread)) => {
-                self.sink_tx = Some(tx);
-                self.sink_thread = Some(thread);
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for Presenter {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    /// Starts the sink thread (once), then decides on the oldest frame.
+    fn on_start(&mut self, ctx: &mut Context<Self>) {
+        if let Some(mut sink) = self.sink.take() {
+            self.prepare = sink.preparer();
+            let me = ctx.address();
+            let capacity = self.max_sink_in_flight;
+            match spawn_sink(sink, capacity, move |outcome| me.do_send(SinkDone(outcome))) {
+                Ok((tx, thread)) => {
+                    self.sink_tx = Some(tx);
+                    self.sink_thread = Some(thread);
+                }
+                Err(e) => return self.fail(format!("cannot start the frame sink thread: {e}")),
             }
-            Err(e) => self.fail(format!("cannot start the frame sink thread: {e}")),
         }
+        self.evaluate(ctx);
+    }
+
+    /// Drops the accumulation; the next frame is decided afresh.
+    fn restart(&mut self, _: &mut Context<Self>) {
+        self.accum = Accumulator::default();
+        self.closing = false;
     }
 }
 
 impl Handler<FrameProgress> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: FrameProgress, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |p, ctx| p.progress(msg, ctx));
+    }
+}
+
+impl Presenter {
+    /// Follows a frame's progress and decides again.
+    fn progress(&mut self, msg: FrameProgress, ctx: &mut Context<Self>) {
         if self.last_closed.is_some_and(|c| msg.frame <= c) {
             return;
         }
@@ -271,11 +318,13 @@ impl Handler<FrameProgress> for Presenter {
 impl Handler<SinkDone> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: SinkDone, ctx: &mut Context<Self>) {
-        self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
-        match msg.0 {
-            Ok(()) => self.evaluate(ctx),
-            Err(e) => self.fail(e.to_string()),
-        }
+        self.guarded(ctx, |p, ctx| {
+            p.sink_in_flight = p.sink_in_flight.saturating_sub(1);
+            match msg.0 {
+                Ok(()) => p.evaluate(ctx),
+                Err(e) => p.fail(e.to_string()),
+            }
+        });
     }
 }
 
@@ -288,45 +337,49 @@ impl Handler<SetPacing> for Presenter {
     type Result = Result<(), PacingError>;
     fn handle(&mut self, msg: SetPacing, ctx: &mut Context<Self>) -> Self::Result {
         msg.0.validate()?;
-        self.pacing = msg.0;
-        // A looser bound may show the waiting frame at once; a tighter one re-arms the timer.
-        self.evaluate(ctx);
+        self.guarded(ctx, |p, ctx| {
+            p.pacing = msg.0;
+            // A looser bound may show the waiting frame at once; a tighter one re-arms the timer.
+            p.evaluate(ctx);
+        });
         Ok(())
     }
 }
 
 impl Handler<Shutdown> for Presenter {
     type Result = ();
-    fn handle(&mut self, _: Shutdown, _: &mut Context<Self>) {
-        self.finish(None);
+    fn handle(&mut self, _: Shutdown, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |p, _| p.finish(None));
     }
 }
 
 impl Handler<FramesAbandoned> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: FramesAbandoned, ctx: &mut Context<Self>) {
-        self.abandoned_before = self.abandoned_before.max(msg.before);
-        self.evaluate(ctx);
+        self.guarded(ctx, |p, ctx| {
+            p.abandoned_before = p.abandoned_before.max(msg.before);
+            p.evaluate(ctx);
+        });
     }
 }
 
 impl Handler<FramesOutdated> for Presenter {
     type Result = ();
     fn handle(&mut self, msg: FramesOutdated, ctx: &mut Context<Self>) {
-        if let Some(prepare) = &self.prepare {
-            prepare(msg.state);
-        }
-        self.outdated_before = self.outdated_before.max(msg.before);
-        self.evaluate(ctx);
+        self.guarded(ctx, |p, ctx| {
+            if let Some(prepare) = &p.prepare {
+                prepare(msg.state);
+            }
+            p.outdated_before = p.outdated_before.max(msg.before);
+            p.evaluate(ctx);
+        });
     }
 }
 
 impl Handler<InjectPanic> for Presenter {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        if let Err(msg) = contain(|| panic!("injected panic in the presenter")) {
-            self.restart_after(&msg, ctx);
-        }
+        self.guarded(ctx, |_, _| panic!("injected panic in the presenter"));
     }
 }
 
@@ -357,12 +410,9 @@ impl Presenter {
         let around_edit = view.decide(frame, p.back, later_has_results);
         let abandoned = frame < self.abandoned_before || around_edit.is_some();
         let judged_at = if abandoned { Duration::MAX } else { elapsed };
-        let decision = match contain(|| {
+        let decision = around_edit.unwrap_or_else(|| {
             decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time)
-        }) {
-            Ok(d) => around_edit.unwrap_or(d),
-            Err(msg) => return self.restart_after(&msg, ctx),
-        };
+        });
         if let Some(t) = self.timer.take() {
             ctx.cancel_future(t);
         }
@@ -377,7 +427,7 @@ impl Presenter {
         match decision {
             Decision::Wait { recheck_at } => {
                 let wait = recheck_at.saturating_sub(elapsed).max(Duration::from_micros(100));
-                self.timer = Some(ctx.run_later(wait, |act, ctx| {
+                self.timer = Some(ctx.run_later_guarded(wait, |act, ctx| {
                     act.timer = None;
                     act.evaluate(ctx);
                 }));
@@ -401,44 +451,55 @@ impl Presenter {
         self.closing = true;
         let i = interaction(elapsed, self.last_frame_time);
         let q = quality(p.back, p.total);
+        let closing = Closing { frame, skip, abandoned, elapsed, p, q, i };
         self.close_to
             .send(CloseFrame { frame })
             .into_actor(self)
             .map(move |res, act, ctx| {
-                act.closing = false;
-                act.last_closed = Some(frame);
-                act.last_close_at = Instant::now();
-                act.pending.retain(|f, _| *f > frame);
-                act.displayed_to.do_send(FrameDisplayed { frame });
-                match res {
-                    Ok(Some(closed)) if !skip => {
-                        act.last_shown = Some(frame);
-                        if !abandoned {
-                            act.last_frame_time = elapsed;
-                        }
-                        if let Err(msg) = contain(|| act.show(closed, q, i, elapsed)) {
-                            return act.restart_after(&msg, ctx);
-                        }
-                    }
-                    other => {
-                        if let Ok(Some(closed)) = other {
-                            Counters::add(&act.counters.results_unused, u64::from(closed.back));
-                        }
-                        // The skipped frame's time becomes the last frame's time, so that
-                        // when workers slow down I_max grows until frames complete again
-                        // (otherwise a fast past would make every frame skip forever).
-                        if !abandoned {
-                            act.last_frame_time = elapsed;
-                        }
-                        act.skipped_since_show += 1;
-                        act.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
-                        act.report.changed.notify_all();
-                        tracing::debug!(frame, back = p.back, total = p.total, "frame skipped");
-                    }
-                }
-                act.evaluate(ctx);
+                act.guarded(ctx, |act, ctx| act.closed(closing, res, ctx));
             })
             .spawn(ctx);
+    }
+
+    /// The assembler's answer to `CloseFrame`: shows the frame or counts it skipped,
+    /// then decides on the next one.
+    fn closed(
+        &mut self,
+        closing: Closing,
+        res: Result<Option<ClosedFrame>, MailboxError>,
+        ctx: &mut Context<Self>,
+    ) {
+        let Closing { frame, skip, abandoned, elapsed, p, q, i } = closing;
+        self.closing = false;
+        self.last_closed = Some(frame);
+        self.last_close_at = Instant::now();
+        self.pending.retain(|f, _| *f > frame);
+        self.displayed_to.do_send(FrameDisplayed { frame });
+        match res {
+            Ok(Some(closed)) if !skip => {
+                self.last_shown = Some(frame);
+                if !abandoned {
+                    self.last_frame_time = elapsed;
+                }
+                self.show(closed, q, i, elapsed);
+            }
+            other => {
+                if let Ok(Some(closed)) = other {
+                    Counters::add(&self.counters.results_unused, u64::from(closed.back));
+                }
+                // The skipped frame's time becomes the last frame's time, so that
+                // when workers slow down I_max grows until frames complete again
+                // (otherwise a fast past would make every frame skip forever).
+                if !abandoned {
+                    self.last_frame_time = elapsed;
+                }
+                self.skipped_since_show += 1;
+                self.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
+                self.report.changed.notify_all();
+                tracing::debug!(frame, back = p.back, total = p.total, "frame skipped");
+            }
+        }
+        self.evaluate(ctx);
     }
 
     /// Accumulates a closed frame, sends it to the sink and publishes its statistics.
@@ -533,15 +594,5 @@ impl Presenter {
     fn fail(&mut self, error: String) {
         tracing::error!(cause = %error, "stopping the master");
         self.finish(Some(error));
-    }
-
-    /// After a contained panic: drop the accumulation and wait for the next frame.
-    fn restart_after(&mut self, msg: &str, ctx: &mut Context<Self>) {
-        let counters = self.counters.clone();
-        if after_panic("presenter", msg, &mut self.restarts, &counters, ctx) {
-            self.accum = Accumulator::default();
-            self.closing = false;
-            ctx.run_later(Duration::ZERO, |act, ctx| act.evaluate(ctx));
-        }
     }
 }
