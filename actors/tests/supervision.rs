@@ -5,9 +5,9 @@
 //! whose connections keep failing is backed off and told why; a panicking
 //! connection's jobs are lost, counted and never handed out again.
 //!
-//! The scheduler, the frame assembler and the listener run no timer (`every_timer_
-//! is_guarded` checks that no actor starts one outside the guard), so they have no
-//! timer axis.
+//! The scheduler, the presenter and the listener run no timer
+//! (`every_timer_and_start_is_guarded` checks that no actor starts one outside the
+//! guard), so they have no timer axis.
 
 mod common;
 
@@ -135,11 +135,11 @@ fn a_panic_in_started_restarts_each_actor_and_the_master_keeps_serving() {
 
 #[test]
 fn a_panic_in_a_timer_restarts_each_actor_that_has_one() {
-    // The presenter's heuristic deadline: at a fixed rate every frame waits on it.
+    // The frame assembler's heuristic deadline: at a fixed rate every frame waits on it.
     let mut c = config();
     c.pacing = gridlight_actors::wait_heuristic::Pacing::FixedFps(50.0);
-    c.inject_panics = vec!["presenter:timer:1".parse().expect("injection")];
-    serving(start_with(c), |m| keeps_serving(m, "presenter", 1));
+    c.inject_panics = vec!["assembler:timer:1".parse().expect("injection")];
+    serving(start_with(c), |m| keeps_serving(m, "frame assembler", 1));
 
     // A connection's keep-alive tick: it ends, the worker's reconnection is served.
     let mut c = config();

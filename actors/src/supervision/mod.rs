@@ -7,8 +7,9 @@
 //! │     each child with a restart intensity (RestartPolicy: at most N restarts in T,
 //! │     exponential back-off); past it the root stops: escalation
 //! ├── scheduler        restart: a fresh job queue (frame numbers go on; queued jobs lost)
-//! ├── frame assembler  restart: a fresh frame table (frames in flight lost, shown ones stay refused)
-//! ├── presenter        restart: accumulation dropped, the next frame decided afresh
+//! ├── frame assembler  restart: a fresh frame table (frames in flight lost and skipped,
+//! │                    shown ones stay refused), the oldest frame decided afresh
+//! ├── presenter        restart: nothing to replace (the frame it was handing over is lost)
 //! ├── scene holder     restart: keeps the last good state (an immutable value)
 //! ├── announcer        restart: nothing to replace (one datagram, repeated)
 //! └── listener         restart: keeps its live connections; it supervises
