@@ -72,6 +72,11 @@ impl PanicPlan {
         Self { armed: !injections.is_empty(), left: Mutex::new(injections.to_vec()) }
     }
 
+    /// Whether any injection was configured (the guard skips the plan otherwise).
+    pub fn armed(&self) -> bool {
+        self.armed
+    }
+
     /// Panics when an injection for `actor` at `site` has panics left.
     pub fn fire(&self, actor: ActorKind, site: Site) {
         if !self.armed || !self.take(actor, site) {
