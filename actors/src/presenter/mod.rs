@@ -317,18 +317,21 @@ impl Presenter {
             owners: closed.owners,
             stats: stats.clone(),
         };
-        let taken = match self.sink_tx.as_ref().map(|tx| tx.try_send(frame)) {
-            Some(Ok(())) => true,
+        let sent = match &self.sink_tx {
+            Some(tx) => tx.try_send(frame),
+            None => Ok(()),
+        };
+        let taken = match sent {
+            Ok(()) => self.sink_tx.is_some(),
             // Cannot happen while the assembler bounds the frames in flight; never block here.
-            Some(Err(TrySendError::Full(_))) => {
+            Err(TrySendError::Full(_)) => {
                 tracing::warn!(frame = stats.frame, "sink full; frame not shown");
                 false
             }
-            Some(Err(TrySendError::Disconnected(_))) => {
+            Err(TrySendError::Disconnected(_)) => {
                 tracing::warn!("sink thread gone");
                 false
             }
-            None => false,
         };
         {
             let mut r = self.report.state.lock().unwrap_or_else(|p| p.into_inner());
