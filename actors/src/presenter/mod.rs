@@ -354,7 +354,10 @@ impl Presenter {
         // frames are (judged as if their time were up: shown if good enough).
         let later_has_results = self.pending.range(frame + 1..).any(|(_, later)| later.back > 0);
         let view = NewView { outdated_before: self.outdated_before, last_shown: self.last_shown };
-        let around_edit = view.decide(frame, p.back, later_has_results);
+        let around_edit = match self.pacing {
+            Pacing::FixedFps(_) => view.decide_fixed_rate(frame, p.back, later_has_results),
+            Pacing::Heuristic(_) => view.decide(frame, p.back, later_has_results),
+        };
         let abandoned = frame < self.abandoned_before || around_edit.is_some();
         let judged_at = if abandoned { Duration::MAX } else { elapsed };
         let decision = match contain(|| {

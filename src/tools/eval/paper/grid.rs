@@ -11,7 +11,8 @@
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
@@ -141,10 +142,26 @@ pub struct Session {
     /// Measured time after the warm-up (a camera path plays from its start).
     pub seconds: f64,
     pub path: Vec<(Duration, Edit)>,
+    /// How the camera path is played.
+    pub path_pacing: PathPacing,
     /// Jobs a worker holds (k).
     pub pipeline: u32,
-    /// Compose each shown frame and measure FLIP to this linear image (Figure 8).
+    /// Compose each shown frame and measure FLIP to this linear image (Figure 8). The
+    /// frames are kept during the session and composed after it, so that reconstruction
+    /// on this machine's CPU neither slows the display nor takes the cores the grid's
+    /// simulation runs on (the paper reconstructed on the master's GPU).
     pub gold: Option<Arc<Vec<Vec3>>>,
+}
+
+/// How a session plays its camera path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathPacing {
+    /// Each edit at its recorded time, whatever the display shows.
+    Timed,
+    /// As the paper's interactive sequences: the view holds until the path's first edit
+    /// is due, then the next edit is made as soon as a frame of the newest view is shown,
+    /// so that each view gets one whole frame period on the grid.
+    PerFrame,
 }
 
 /// One shown frame.
@@ -160,6 +177,11 @@ pub struct FrameRecord {
     pub paused_workers: u64,
     /// The scene-state version the frame was rendered with.
     pub version: u64,
+    /// Whether that was the newest state when the frame was shown (false: an edit had
+    /// outdated it, and the display showed it without waiting).
+    pub current: bool,
+    /// Results of this frame that came back in time (its Q_t × S).
+    pub jobs_back: u32,
     /// FLIP to the gold standard, when one was given.
     pub flip: Option<f64>,
 }
@@ -194,24 +216,16 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
     let peak = session.availability.peak();
     config.max_connections = config.max_connections.max(peak as usize + 8);
     let records = Arc::new(Mutex::new(Vec::new()));
-    let composer = match &session.gold {
-        Some(_) => Some(
-            Composer::new(
-                Arc::clone(&prepared.assets),
-                &prepared.state,
-                ReconstructParams::default(),
-                Backend::Cpu,
-            )
-            .context("preparing reconstruction")?,
-        ),
-        None => None,
-    };
+    let kept = Arc::new(Mutex::new(Vec::new()));
     let clock = Arc::new(Mutex::new(Clock::default()));
+    let newest = Arc::new(AtomicU64::new(prepared.state.version));
+    let (shown_tx, shown_rx) = mpsc::channel();
     let sink = RecordingSink {
         records: Arc::clone(&records),
-        composer,
-        gold: session.gold.clone(),
+        kept: session.gold.as_ref().map(|_| Arc::clone(&kept)),
         clock: Arc::clone(&clock),
+        newest: Arc::clone(&newest),
+        shown: shown_tx,
     };
     let handle = master::start(config, prepared.state.clone(), AssetStore::new(), Box::new(sink))
         .context("starting the master")?;
@@ -234,17 +248,30 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
     }
     let before = Sample::take(&handle);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = true;
-    if !session.path.is_empty() {
-        handle.play_script(session.path.clone());
+    match session.path_pacing {
+        PathPacing::Timed => {
+            if !session.path.is_empty() {
+                handle.play_script(session.path.clone());
+            }
+            std::thread::sleep(Duration::from_secs_f64(session.seconds));
+        }
+        PathPacing::PerFrame => {
+            // Frames shown during the warm-up are not the path's.
+            while shown_rx.try_recv().is_ok() {}
+            play_per_frame(&handle, &session.path, session.seconds, &shown_rx, &newest)?;
+        }
     }
-    std::thread::sleep(Duration::from_secs_f64(session.seconds));
     let after = Sample::take(&handle);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = false;
     drop(_grid);
     handle.stop().context("stopping the master")?;
 
-    let all_frames: Vec<FrameRecord> =
+    let mut all_frames: Vec<FrameRecord> =
         std::mem::take(&mut *records.lock().unwrap_or_else(|p| p.into_inner()));
+    if let Some(gold) = &session.gold {
+        let kept = std::mem::take(&mut *kept.lock().unwrap_or_else(|p| p.into_inner()));
+        measure_flip(prepared, gold, &kept, &mut all_frames)?;
+    }
     let frames: Vec<FrameRecord> = all_frames.iter().filter(|f| f.measured).cloned().collect();
     let seconds = after.at.duration_since(before.at).as_secs_f64();
     let (used, unused, late) =
@@ -261,6 +288,79 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         frames_skipped: after.skipped - before.skipped,
         seconds,
     })
+}
+
+/// Plays `path` one edit per shown frame of the newest view ([`PathPacing::PerFrame`]),
+/// from the path's first edit time on, for `seconds` in all.
+fn play_per_frame(
+    handle: &master::MasterHandle,
+    path: &[(Duration, Edit)],
+    seconds: f64,
+    shown: &mpsc::Receiver<u64>,
+    newest: &AtomicU64,
+) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let end = started + Duration::from_secs_f64(seconds);
+    let hold = path.first().map_or(Duration::ZERO, |(at, _)| *at);
+    std::thread::sleep(hold.min(end.saturating_duration_since(started)));
+    let mut edits = path.iter().map(|(_, e)| e);
+    let mut next = edits.next();
+    while let Some(edit) = next {
+        let version = handle.edit(edit.clone()).context("editing the camera")?;
+        newest.fetch_max(version, Ordering::AcqRel);
+        next = edits.next();
+        // Wait for a frame of this view (frames of older views are shown without waiting).
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            match shown.recv_timeout(left) {
+                Ok(v) if v >= version => break,
+                Ok(_) => continue,
+                Err(_) => return Ok(()),
+            }
+        }
+    }
+    std::thread::sleep(end.saturating_duration_since(Instant::now()));
+    Ok(())
+}
+
+/// Composes the kept frames in order, as the display would have, and sets each record's
+/// FLIP to `gold`.
+fn measure_flip(
+    prepared: &Prepared,
+    gold: &[Vec3],
+    kept: &[ShownFrame],
+    records: &mut [FrameRecord],
+) -> anyhow::Result<()> {
+    let mut composer = Composer::new(
+        Arc::clone(&prepared.assets),
+        &prepared.state,
+        ReconstructParams::default(),
+        Backend::Cpu,
+    )
+    .context("preparing reconstruction")?;
+    for frame in kept {
+        let composed = composer.compose(frame, View::Final).context("composing a shown frame")?;
+        let linear = composed.linear.unwrap_or_default();
+        let res = frame.state.resolution;
+        let flip = super::super::compare(gold, &linear, res.width, res.height, 0.0).flip;
+        if let Some(r) = records.iter_mut().find(|r| r.frame == frame.frame) {
+            r.flip = Some(flip);
+        }
+    }
+    Ok(())
+}
+
+impl Outcome {
+    /// Results used per second over whole frames: the results of the measured frames
+    /// after the first, over the time from the first one's display to the last one's.
+    /// A window that cut a frame would count all or none of its results (a quarter of
+    /// the rate with one worker and four frames in the window).
+    pub fn used_per_second(&self) -> Option<f64> {
+        let (first, last) = (self.frames.first()?, self.frames.last()?);
+        let span = last.t - first.t;
+        (span > 0.0)
+            .then(|| self.frames[1..].iter().map(|f| f64::from(f.jobs_back)).sum::<f64>() / span)
+    }
 }
 
 /// Mean of `values` (0 when empty).
@@ -313,12 +413,16 @@ fn curve_name(curve: crate::simgrid::Curve) -> &'static str {
     }
 }
 
-/// Records shown frames while the clock runs; composes them for Figure 8.
+/// Records shown frames while the clock runs; keeps them for Figure 8's FLIP.
 struct RecordingSink {
     records: Arc<Mutex<Vec<FrameRecord>>>,
-    composer: Option<Composer>,
-    gold: Option<Arc<Vec<Vec3>>>,
+    /// Where shown frames are kept (without their owners) to be composed afterwards.
+    kept: Option<Arc<Mutex<Vec<ShownFrame>>>>,
     clock: Arc<Mutex<Clock>>,
+    /// The newest scene-state version the session made.
+    newest: Arc<AtomicU64>,
+    /// Each shown frame's state version, for [`PathPacing::PerFrame`].
+    shown: mpsc::Sender<u64>,
 }
 
 /// When the grid had connected, and whether the measured interval runs.
@@ -329,33 +433,33 @@ struct Clock {
 }
 
 impl FrameSink for RecordingSink {
-    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
-        let flip = match (&mut self.composer, &self.gold) {
-            (Some(composer), Some(gold)) => {
-                let composed = composer
-                    .compose(&frame, View::Final)
-                    .map_err(|e| SinkError::Other(Box::new(e)))?;
-                let linear = composed.linear.unwrap_or_default();
-                let res = frame.state.resolution;
-                Some(super::super::compare(gold, &linear, res.width, res.height, 0.0).flip)
-            }
-            _ => None,
-        };
+    fn show(&mut self, mut frame: ShownFrame) -> Result<(), SinkError> {
+        let version = frame.state.version;
+        let current = version >= self.newest.load(Ordering::Acquire);
+        let _ = self.shown.send(version);
+        let (frame_no, stats) = (frame.frame, frame.stats.clone());
+        if let Some(kept) = &self.kept {
+            // Every frame, warm-up included: the display's accumulation starts with the first.
+            frame.owners = Default::default();
+            kept.lock().unwrap_or_else(|p| p.into_inner()).push(frame);
+        }
         let (connected, measured) = {
             let clock = self.clock.lock().unwrap_or_else(|p| p.into_inner());
             (clock.connected, clock.measuring)
         };
         let Some(start) = connected else { return Ok(()) };
-        let s = &frame.stats;
+        let s = &stats;
         self.records.lock().unwrap_or_else(|p| p.into_inner()).push(FrameRecord {
-            frame: frame.frame,
+            frame: frame_no,
             t: start.elapsed().as_secs_f64(),
             measured,
             q: s.q,
             workers: s.workers,
             paused_workers: s.paused_workers,
-            version: frame.state.version,
-            flip,
+            version,
+            current,
+            jobs_back: s.jobs_back,
+            flip: None,
         });
         Ok(())
     }

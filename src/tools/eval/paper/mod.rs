@@ -12,12 +12,14 @@
 //! - [`grid`]: one session of the master with a simulated grid.
 //! - [`offline`]: Figures 3 and 9 (reconstruction of complete path-traced frames).
 //! - [`fig5`], [`table1`], [`fig8`], [`fig10`]: sessions on a simulated grid.
+//! - [`gold`]: Figure 8's gold standard, rendered once and cached.
 //! - [`plot`]: PNG line plots. [`stats`]: correlation and medians.
 
 pub mod context;
 pub mod fig10;
 pub mod fig5;
 pub mod fig8;
+pub mod gold;
 pub mod grid;
 pub mod offline;
 pub mod plot;

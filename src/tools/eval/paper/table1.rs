@@ -6,7 +6,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::context::{Context, Cores, Table1};
-use super::grid::{run_session, Session};
+use super::grid::{run_session, PathPacing, Session};
 use super::plot::{self, Chart, Series};
 use super::{Claim, Section};
 use crate::simgrid::{availability::PAPER_PERIOD, Availability, Curve};
@@ -68,6 +68,7 @@ pub fn run(ctx: &mut Context, p: &Table1) -> anyhow::Result<Section> {
                         pacing,
                         seconds: p.seconds,
                         path: Vec::new(),
+                        path_pacing: PathPacing::Timed,
                         pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
                         gold: None,
                     },
