@@ -54,6 +54,7 @@ pub fn run(ctx: &mut Context, p: &Fig10) -> anyhow::Result<Section> {
                     path: Vec::new(),
                     path_pacing: PathPacing::Timed,
                     pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
+                    network: None,
                     gold: None,
                 },
             )?;

@@ -48,6 +48,7 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
         path: path.clone(),
         path_pacing: PathPacing::PerFrame,
         pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
+        network: None,
         gold: None,
     };
     let out = run_session(&ctx.exe, &prepared, &session)?;

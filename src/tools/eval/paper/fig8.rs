@@ -51,12 +51,18 @@ pub fn run(ctx: &mut Context, p: &Fig8) -> anyhow::Result<Section> {
                 path: Vec::new(),
                 path_pacing: PathPacing::Timed,
                 pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
+                network: None,
                 gold: Some(Arc::clone(&gold)),
             },
         )?;
-        // From the moment the grid had connected: the warm-up is part of converging.
-        let points: Vec<(f64, f64)> =
-            out.all_frames.iter().filter_map(|f| f.flip.map(|e| (f.t, e))).collect();
+        // From the moment the grid had connected (the view restarted then): the warm-up
+        // is part of converging.
+        let points: Vec<(f64, f64)> = out
+            .all_frames
+            .iter()
+            .filter(|f| f.current)
+            .filter_map(|f| f.flip.map(|e| (f.t, e)))
+            .collect();
         let below = points.iter().find(|(_, e)| *e < p.threshold).map(|(t, _)| *t);
         rows.push(json!({
             "grid": label, "time_to_threshold_s": below, "final_flip": points.last().map(|p| p.1),

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
-use gridlight_actors::edit::Edit;
+use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::master::{self, MasterConfig, Pacing, ShownFrame, SinkError};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::sets::SetTable;
@@ -35,11 +35,12 @@ use crate::master::view::View;
 use crate::reconstruct::ReconstructParams;
 use crate::render::RenderScene;
 use crate::simgrid::{Availability, CostModel, FrameCache};
+use crate::tools::lan::{netns, Testbed};
 
 /// Sets of the jobs timed to measure a scene's cost.
 const MEASURE_SETS: u32 = 64;
-/// Jobs timed to measure a scene's cost.
-const COST_JOBS: u32 = 24;
+/// Jobs timed to measure a scene's cost (in `CostModel::measure`'s rounds).
+const COST_JOBS: u32 = 40;
 /// Simulated workers per child process at most.
 const WORKERS_PER_PROCESS: u32 = 128;
 /// Longest wait for the grid to connect and the first frames to show.
@@ -146,6 +147,9 @@ pub struct Session {
     pub path_pacing: PathPacing,
     /// Jobs a worker holds (k).
     pub pipeline: u32,
+    /// Hosts of a network testbed (`tools::lan`): the master on one, the grid's processes
+    /// on the others, every link rate-limited; `None`: loopback.
+    pub network: Option<Arc<Testbed>>,
     /// Compose each shown frame and measure FLIP to this linear image (Figure 8). The
     /// frames are kept during the session and composed after it, so that reconstruction
     /// on this machine's CPU neither slows the display nor takes the cores the grid's
@@ -203,12 +207,19 @@ pub struct Outcome {
     pub dropped_late: u64,
     pub frames_skipped: u64,
     pub seconds: f64,
+    /// Bytes into and out of the master's host over its link, on a testbed.
+    pub link_rx_bytes: Option<u64>,
+    pub link_tx_bytes: Option<u64>,
 }
 
 /// Runs `session` on `prepared`'s scene; `exe` is the `gridlight` binary.
 pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow::Result<Outcome> {
+    let listen = match &session.network {
+        Some(bed) => SocketAddr::new(bed.master().address.into(), 0),
+        None => SocketAddr::from(([127, 0, 0, 1], 0)),
+    };
     let mut config = MasterConfig::new(
-        SocketAddr::from(([127, 0, 0, 1], 0)),
+        listen,
         SetsConfig { sets: prepared.sets, partition: Partition::QuasiRandom },
     );
     config.pacing = session.pacing;
@@ -227,8 +238,14 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         newest: Arc::clone(&newest),
         shown: shown_tx,
     };
-    let handle = master::start(config, prepared.state.clone(), AssetStore::new(), Box::new(sink))
-        .context("starting the master")?;
+    let start = || master::start(config, prepared.state.clone(), AssetStore::new(), Box::new(sink));
+    let handle = match &session.network {
+        // The master's threads inherit the namespace of the thread that starts them.
+        Some(bed) => netns::run_in(&bed.master().namespace, start)
+            .context("entering the master's network namespace")?,
+        None => start(),
+    }
+    .context("starting the master")?;
     let _grid = spawn_grid(exe, handle.local_addr(), prepared, session)?;
 
     let deadline = Instant::now() + WARMUP_TIMEOUT;
@@ -242,10 +259,19 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         }
         std::thread::sleep(Duration::from_millis(20));
     }
+    if session.gold.is_some() {
+        // Converging starts when the grid is there: an edit that changes nothing but the
+        // version restarts the display's accumulation (the cached frames are found by
+        // content, so the workers answer it as before).
+        let v = handle.edit(Edit::Camera(CameraEdit::default())).context("restarting the view")?;
+        newest.fetch_max(v, Ordering::AcqRel);
+    }
     clock.lock().unwrap_or_else(|p| p.into_inner()).connected = Some(Instant::now());
     if !handle.wait_for_frames(handle.report().shown + 2, WARMUP_TIMEOUT) {
         bail!("no frames shown with {want} simulated workers");
     }
+    let link = |bed: &Arc<Testbed>| bed.counters(bed.master()).ok();
+    let link_before = session.network.as_ref().and_then(link);
     let before = Sample::take(&handle);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = true;
     match session.path_pacing {
@@ -262,6 +288,7 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         }
     }
     let after = Sample::take(&handle);
+    let link_after = session.network.as_ref().and_then(link);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = false;
     drop(_grid);
     handle.stop().context("stopping the master")?;
@@ -287,6 +314,8 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         dropped_late: late,
         frames_skipped: after.skipped - before.skipped,
         seconds,
+        link_rx_bytes: link_before.zip(link_after).map(|(b, a)| a.rx_bytes - b.rx_bytes),
+        link_tx_bytes: link_before.zip(link_after).map(|(b, a)| a.tx_bytes - b.tx_bytes),
     })
 }
 
@@ -385,7 +414,14 @@ fn spawn_grid(
     let mut first = 0;
     while first < peak {
         let count = WORKERS_PER_PROCESS.min(peak - first);
-        let mut cmd = Command::new(exe);
+        // One process per worker host, round robin, when the grid is on a testbed.
+        let mut cmd = match &session.network {
+            Some(bed) => {
+                let hosts = bed.workers();
+                bed.command(&hosts[(first / WORKERS_PER_PROCESS) as usize % hosts.len()], exe)
+            }
+            None => Command::new(exe),
+        };
         cmd.args(["simgrid", "--master", &master.to_string(), "--cache"])
             .arg(&prepared.cache_file)
             .args(["--grid", &session.availability.n.to_string()])
