@@ -10,13 +10,14 @@ use std::time::Instant;
 
 use serde_json::Value;
 
-const SECTIONS: [(&str, &str); 6] = [
+const SECTIONS: [(&str, &str); 7] = [
     ("fig3", "## Figure 3"),
     ("fig5", "## Figure 5"),
     ("table1", "## Table 1"),
     ("fig8", "## Figure 8"),
     ("fig9", "## Figure 9"),
     ("fig10", "## Figure 10"),
+    ("lan", "## Beyond the paper"),
 ];
 
 #[test]

@@ -35,6 +35,7 @@ use crate::master::view::View;
 use crate::reconstruct::ReconstructParams;
 use crate::render::RenderScene;
 use crate::simgrid::{Availability, CostModel, FrameCache};
+use crate::tools::eval::{flip, hdr_flip::hdr_flip};
 use crate::tools::lan::{netns, Testbed};
 
 /// Sets of the jobs timed to measure a scene's cost.
@@ -188,6 +189,9 @@ pub struct FrameRecord {
     pub jobs_back: u32,
     /// FLIP to the gold standard, when one was given.
     pub flip: Option<f64>,
+    /// HDR-FLIP of the linear image to the gold standard, for some of those frames
+    /// ([`HDR_POINTS`] per session).
+    pub hdr_flip: Option<f64>,
 }
 
 /// What a session measured.
@@ -352,8 +356,12 @@ fn play_per_frame(
     Ok(())
 }
 
+/// Frames per session whose HDR-FLIP is measured (it costs one LDR-FLIP per exposure).
+pub const HDR_POINTS: usize = 24;
+
 /// Composes the kept frames in order, as the display would have, and sets each record's
-/// FLIP to `gold`.
+/// FLIP to `gold` (and HDR-FLIP for [`HDR_POINTS`] of them, evenly spaced, the last
+/// included).
 fn measure_flip(
     prepared: &Prepared,
     gold: &[Vec3],
@@ -367,13 +375,16 @@ fn measure_flip(
         Backend::Cpu,
     )
     .context("preparing reconstruction")?;
-    for frame in kept {
+    let every = kept.len().div_ceil(HDR_POINTS).max(1);
+    for (i, frame) in kept.iter().enumerate() {
         let composed = composer.compose(frame, View::Final).context("composing a shown frame")?;
+        let Some(r) = records.iter_mut().find(|r| r.frame == frame.frame) else { continue };
         let linear = composed.linear.unwrap_or_default();
-        let res = frame.state.resolution;
-        let flip = super::super::compare(gold, &linear, res.width, res.height, 0.0).flip;
-        if let Some(r) = records.iter_mut().find(|r| r.frame == frame.frame) {
-            r.flip = Some(flip);
+        let (w, h) = (frame.state.resolution.width, frame.state.resolution.height);
+        r.flip = Some(super::super::compare(gold, &linear, w, h, 0.0).flip);
+        if i % every == 0 || i + 1 == kept.len() {
+            let hdr = hdr_flip(gold, &linear, w as usize, h as usize, flip::DEFAULT_PPD);
+            r.hdr_flip = Some(hdr.mean);
         }
     }
     Ok(())
@@ -496,6 +507,7 @@ impl FrameSink for RecordingSink {
             current,
             jobs_back: s.jobs_back,
             flip: None,
+            hdr_flip: None,
         });
         Ok(())
     }

@@ -39,17 +39,20 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
                 ctx.step(format!("lan: {label}, {n} workers, {mode}"));
                 // A testbed per session: its namespaces go when the session ends.
                 let network = match link {
-                    Some(link_mbit) => Some(Arc::new(Testbed::build(TestbedSpec {
-                        worker_hosts: 1,
-                        link_mbit,
-                    })?)),
+                    Some(link_mbit) => {
+                        Some(Arc::new(Testbed::build(TestbedSpec { worker_hosts: 1, link_mbit })?))
+                    }
                     None => None,
                 };
                 let out = run_session(
                     &ctx.exe,
                     &prepared,
                     &Session {
-                        availability: Availability { curve: Curve::Constant, n, period: PAPER_PERIOD },
+                        availability: Availability {
+                            curve: Curve::Constant,
+                            n,
+                            period: PAPER_PERIOD,
+                        },
                         pacing,
                         seconds: p.seconds,
                         path: Vec::new(),
@@ -70,7 +73,10 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
                 let label = link.map_or("loopback".to_string(), |m| format!("{m} Mbit/s"));
                 let points = rows
                     .iter()
-                    .filter(|r| r["link"] == label && r["mode"].as_str().is_some_and(|m| m.starts_with(mode)))
+                    .filter(|r| {
+                        r["link"] == label
+                            && r["mode"].as_str().is_some_and(|m| m.starts_with(mode))
+                    })
                     .map(|r| (r["workers"].as_f64().unwrap_or(0.0), r[key].as_f64().unwrap_or(0.0)))
                     .collect();
                 Series::new(label, points)
@@ -119,9 +125,12 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
             .filter(|r| r["link"] == label)
             .filter_map(|r| {
                 let base = rows.iter().find(|b| {
-                    b["link"] == "loopback" && b["workers"] == r["workers"] && b["mode"] == r["mode"]
+                    b["link"] == "loopback"
+                        && b["workers"] == r["workers"]
+                        && b["mode"] == r["mode"]
                 })?;
-                let (a, b) = (r["frames_per_second"].as_f64()?, base["frames_per_second"].as_f64()?);
+                let (a, b) =
+                    (r["frames_per_second"].as_f64()?, base["frames_per_second"].as_f64()?);
                 (b > 0.0).then_some(a / b)
             })
             .reduce(f64::min)
