@@ -123,7 +123,11 @@ fn render_and_compose(prepared: &Prepared, frames: u32) -> anyhow::Result<Vec<Ve
             current_mask: vec![true; current.len()],
             current,
             owners: Default::default(),
-            stats: Default::default(),
+            // Every frame accumulates, as the frame assembler counts a static view's.
+            stats: gridlight_actors::stats::FrameStats {
+                accumulated_frames: i as u32 + 1,
+                ..Default::default()
+            },
         };
         last = composer.compose(&frame, View::Final)?.linear.unwrap_or_default();
     }
