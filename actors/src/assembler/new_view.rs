@@ -12,6 +12,9 @@
 //! - a frame of the new state is shown as soon as it has a result, and skipped when it has
 //!   none while a later frame has some.
 //!
+//! At a fixed frame rate the user chose the period: the new state's frames wait it like
+//! any other ([`NewView::decide_fixed_rate`]); outdated frames are still not waited for.
+//!
 //! Once it has been shown the heuristic decides again, and the frames of that state
 //! accumulate (progressive refinement). Frames decided by this rule are left out of the
 //! heuristic's frame time, like abandoned ones: their time is the edit's, not the grid's.

@@ -3,10 +3,12 @@
 //!
 //! [`Prepared`] measures the scene's cost and renders the frame cache once (written to a
 //! file the simulated-worker processes load); [`run_session`] starts the master in this
-//! process with a sink that records every shown frame (and, for Figure 8, composes it and
-//! measures its FLIP to a gold standard), starts the grid as `gridlight simgrid` child
-//! processes (a few of them, each holding many connections), plays the camera path if
-//! any, and returns per-frame records and the useful fraction of the returned results.
+//! process with a sink that records every shown frame (and, for Figure 8, keeps it to be
+//! composed after the session and measured against a gold standard), starts the grid as
+//! `gridlight simgrid` child processes (a few of them, each holding many connections; on
+//! a `tools::lan` testbed, on its worker hosts), plays the camera path if any (at its
+//! recorded times, or one edit per shown frame), and returns per-frame records and the
+//! useful fraction of the returned results.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
