@@ -11,8 +11,9 @@
 //! ```
 //!
 //! The actors are made in one direction, each from the addresses of those it sends to
-//! (presenter, assembler, scheduler, scene holder, listener); a reply goes to the
-//! address its request carries, as connections get their jobs.
+//! (presenter, assembler, scheduler, scene holder, listener: only its context is made
+//! first, so that its connections' links lead back to it, their supervisor); a reply
+//! goes to the address its request carries, as connections get their jobs.
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -73,10 +74,10 @@ pub struct MasterConfig {
     pub restart: RestartPolicy,
     /// Announce this master on the LAN (`discovery`); `None`: stay quiet.
     pub announce: Option<AnnounceConfig>,
-    /// Frames the display hands to the sink ahead of it (1 for the least latency, 2 to
+    /// Frames the assembler hands to the sink ahead of it (1 for the least latency, 2 to
     /// keep a fast sink busy: [`crate::presenter::DEFAULT_SINK_IN_FLIGHT`]).
     pub sink_in_flight: usize,
-    /// A state change discards the queued jobs of older versions and the display does
+    /// A state change discards the queued jobs of older versions and the assembler does
     /// not wait for their held ones (default); `false` only to measure what that gains.
     pub discard_stale_jobs: bool,
 }

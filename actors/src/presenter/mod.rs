@@ -72,7 +72,7 @@ pub struct SinkDone(pub SinkOutcome);
 #[rtype(result = "()")]
 pub struct Shutdown;
 
-/// What the master's handle can see of the display, shared with it.
+/// What the master's handle can see of the presenter, shared with it.
 #[derive(Debug, Default)]
 pub struct Report {
     pub state: Mutex<ReportState>,

@@ -56,7 +56,7 @@ struct ConnClock {
     last_result: Option<Instant>,
 }
 
-/// The last frame the display shown or skipped.
+/// The last frame the assembler showed or skipped.
 #[derive(Clone, Copy, Debug)]
 struct Displayed {
     frame: FrameNo,
