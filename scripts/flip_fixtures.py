@@ -8,6 +8,10 @@ and writes the per-pixel maps and means as JSON beside them. Run once from the r
 root; tests/flip_known_answer.rs compares our FLIP with these files:
 
     python3 scripts/flip_fixtures.py
+
+It also makes the HDR-FLIP fixtures (tests/fixtures/flip-hdr/): linear, unbounded image
+pairs (stored as float32 values in the JSON, as no 8-bit file can hold them), evaluated
+with the reference's HDR-FLIP (ACES tone mapper, exposures found from the reference).
 """
 
 import json
@@ -18,6 +22,7 @@ from PIL import Image
 import flip_evaluator as flip
 
 OUT = Path("tests/fixtures/flip")
+OUT_HDR = Path("tests/fixtures/flip-hdr")
 W, H = 40, 30
 
 
@@ -48,6 +53,47 @@ def pairs():
     yield "dots-missing", dots, np.full((H, W, 3), 0.2)
 
 
+def hdr_pairs():
+    rng = np.random.default_rng(21)
+    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
+    # A rendered-looking range: a dim room with a light 50 times brighter, and noise.
+    room = np.stack([0.05 + 0.3 * x / W, 0.05 + 0.2 * y / H, np.full_like(x, 0.1)], axis=-1)
+    room[5:9, 15:25] = (50.0, 45.0, 40.0)
+    yield "room-noise", room, room * np.exp(rng.normal(0.0, 0.25, room.shape))
+    # The same scene 20 % brighter everywhere: an exposure (energy) error.
+    yield "room-brighter", room, room * 1.2
+    # A highlight missing: only the brightest exposures see it fully.
+    spot = np.full((H, W, 3), 0.3)
+    spot[14:17, 18:21] = 20.0
+    yield "highlight-missing", spot, np.full((H, W, 3), 0.3)
+
+
+def hdr_fixtures():
+    OUT_HDR.mkdir(parents=True, exist_ok=True)
+    index = []
+    for name, ref, test in hdr_pairs():
+        r32, t32 = ref.astype(np.float32), test.astype(np.float32)
+        err, mean, params = flip.evaluate(
+            r32, t32, "HDR", inputsRGB=False, applyMagma=False, computeMeanError=True,
+            parameters={"ppd": 67.0},
+        )
+        err = np.asarray(err, dtype=np.float64).reshape(H, W)
+        record = {
+            "name": name, "width": W, "height": H, "ppd": 67.0, "mean": float(mean),
+            "start_exposure": float(params["startExposure"]),
+            "stop_exposure": float(params["stopExposure"]),
+            "exposures": int(params["numExposures"]),
+            "reference": [float(f"{v:.9g}") for v in r32.ravel()],
+            "test": [float(f"{v:.9g}") for v in t32.ravel()],
+            "map": [round(float(v), 6) for v in err.ravel()],
+            "made_with": "flip-evaluator 1.7, HDR, ACES, linear inputs",
+        }
+        (OUT_HDR / f"{name}.json").write_text(json.dumps(record))
+        index.append(name)
+        print(f"{name} (HDR): mean FLIP {mean:.6f}, exposures {params}")
+    (OUT_HDR / "index.json").write_text(json.dumps(index))
+
+
 def to8(img):
     return np.clip(np.round(np.clip(img, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
 
@@ -73,6 +119,7 @@ def main():
         index.append(name)
         print(f"{name}: mean FLIP {mean:.6f}")
     (OUT / "index.json").write_text(json.dumps(index))
+    hdr_fixtures()
 
 
 if __name__ == "__main__":

@@ -40,6 +40,8 @@ pub enum EvalCommand {
     Fig9(super::eval_paper::Fig9Args),
     /// Figure 10: speed-up and efficiency for 1 to 256 simulated workers.
     Fig10(super::eval_paper::Fig10Args),
+    /// Beyond the paper: the sessions across 100 Mbit/s and 1 Gbit/s links (root).
+    Lan(super::eval_paper::LanArgs),
 }
 
 /// Arguments of `gridlight eval reconstruction`.
@@ -93,6 +95,7 @@ pub fn run(cmd: EvalCommand, global: &GlobalArgs) -> anyhow::Result<()> {
         EvalCommand::Fig8(a) => super::eval_paper::run(Experiment::Fig8(a), global),
         EvalCommand::Fig9(a) => super::eval_paper::run(Experiment::Fig9(a), global),
         EvalCommand::Fig10(a) => super::eval_paper::run(Experiment::Fig10(a), global),
+        EvalCommand::Lan(a) => super::eval_paper::run(Experiment::Lan(a), global),
     }
 }
 

@@ -1,5 +1,5 @@
 //! `gridlight eval paper` and the experiments one by one (`eval fig3`, `fig5`, `table1`,
-//! `fig8`, `fig9`, `fig10`): each writes `report.md`, `index.html`, `results.json`, its
+//! `fig8`, `fig9`, `fig10`, `lan`): each writes `report.md`, `index.html`, `results.json`, its
 //! plots and images into `--out`, with a progress bar on stderr.
 
 use std::path::PathBuf;
@@ -103,6 +103,21 @@ pub struct Fig10Args {
     pub seconds: Option<f64>,
 }
 
+/// `gridlight eval lan`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct LanArgs {
+    #[command(flatten)]
+    pub common: Common,
+    #[arg(long, value_delimiter = ',')]
+    pub workers: Option<Vec<u32>>,
+    /// Link rates in Mbit/s (each direction of every link).
+    #[arg(long, value_delimiter = ',')]
+    pub links: Option<Vec<u32>>,
+    /// Seconds measured per session.
+    #[arg(long)]
+    pub seconds: Option<f64>,
+}
+
 /// One experiment by name with its flags applied over the quick or full defaults.
 #[derive(Debug, Clone)]
 pub enum Experiment {
@@ -113,6 +128,7 @@ pub enum Experiment {
     Fig8(Fig8Args),
     Fig9(Fig9Args),
     Fig10(Fig10Args),
+    Lan(LanArgs),
 }
 
 /// Runs `eval paper` or one experiment.
@@ -125,6 +141,7 @@ pub fn run(experiment: Experiment, global: &GlobalArgs) -> anyhow::Result<()> {
         Experiment::Fig8(a) => a.common.clone(),
         Experiment::Fig9(a) => a.common.clone(),
         Experiment::Fig10(a) => a.common.clone(),
+        Experiment::Lan(a) => a.common.clone(),
     };
     let mut opts = Options::new(common.quick);
     let only = apply(&experiment, &mut opts)?;
@@ -198,6 +215,16 @@ fn apply(e: &Experiment, o: &mut Options) -> anyhow::Result<Option<&'static str>
             set(&mut o.fig10.workers, a.workers.clone());
             set(&mut o.fig10.seconds, a.seconds);
             Some("fig10")
+        }
+        Experiment::Lan(a) => {
+            anyhow::ensure!(
+                a.workers.iter().flatten().chain(a.links.iter().flatten()).all(|&n| n > 0),
+                "--workers and --links must be positive"
+            );
+            set(&mut o.lan.workers, a.workers.clone());
+            set(&mut o.lan.links_mbit, a.links.clone());
+            set(&mut o.lan.seconds, a.seconds);
+            Some("lan")
         }
     })
 }

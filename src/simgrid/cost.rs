@@ -5,8 +5,9 @@
 //! on one thread and records samples per second per job; a simulated worker then takes
 //! `pixels · spp / throughput` per job, scaled by a normal factor of the measured relative
 //! spread (clamped so that no job is free). The measurement runs on whatever else this
-//! machine is doing: the median and the median absolute deviation keep a few jobs that
-//! another process delayed from making every modelled core slow and erratic.
+//! machine is doing: jobs are timed in the thread's CPU time, in several rounds, and the
+//! median and the median absolute deviation keep a few jobs that another process slowed
+//! (through shared caches) from making every modelled core slow and erratic.
 
 use std::time::{Duration, Instant};
 
@@ -35,29 +36,47 @@ pub struct CostModel {
 
 /// The shortest job, as a share of the mean: a spread wider than 1 must not make a job free.
 const MIN_FACTOR: f64 = 0.2;
+/// Rounds of a measurement ([`CostModel::measure`]).
+pub const ROUNDS: u32 = 5;
 
 impl CostModel {
-    /// Times `jobs` sets of `table` rendered one after another on this thread.
+    /// Times `jobs` sets of `table` rendered one after another on this thread, in
+    /// [`ROUNDS`] rounds over different sets: the rate is the median of the rounds'
+    /// medians. Each job is timed in this thread's CPU time, not wall time, so that other
+    /// processes taking the cores (a build, the rest of the evaluation) do not make the
+    /// scene look slower: a wall-time measurement once per run had Sponza come out as
+    /// cheap as the Cornell box under load.
     pub fn measure(scene: &RenderScene, table: &SetTable, jobs: u32) -> Self {
         let spp = scene.state().render.spp.max(1);
-        let sets = table.sets();
+        let sets = table.sets().max(1);
+        let per_round = (jobs / ROUNDS).max(2);
         let mut out = Vec::new();
-        let mut rates = Vec::new();
-        for j in 0..jobs.max(2) {
-            let set = (j * 7919) % sets.max(1);
-            let pixels = table.pixels(set).unwrap_or(&[]);
-            let started = Instant::now();
-            render_pixels(scene, u64::from(j), pixels, &mut out);
-            let secs = started.elapsed().as_secs_f64().max(1e-9);
-            rates.push((pixels.len() as u64 * u64::from(spp)) as f64 / secs);
+        let mut times = Vec::new();
+        let mut round_medians = Vec::new();
+        for round in 0..ROUNDS {
+            let mut round_times = Vec::new();
+            for j in 0..per_round {
+                let n = round * per_round + j;
+                let set = (n * 7919) % sets;
+                let pixels = table.pixels(set).unwrap_or(&[]);
+                let started = (Instant::now(), thread_cpu_seconds());
+                render_pixels(scene, u64::from(n), pixels, &mut out);
+                let cpu = thread_cpu_seconds() - started.1;
+                // Without a thread clock (NaN), wall time.
+                let secs = if cpu.is_finite() { cpu } else { started.0.elapsed().as_secs_f64() };
+                let samples = (pixels.len() as u64 * u64::from(spp)).max(1) as f64;
+                // Time per sample.
+                round_times.push(secs.max(1e-9) / samples);
+            }
+            round_medians.push(median(&round_times));
+            times.extend(round_times);
         }
-        // Time per sample; robust centre and spread (MAD × 1.4826 estimates a normal σ).
-        let times: Vec<f64> = rates.iter().map(|r| 1.0 / r).collect();
-        let median = median(&times);
-        let deviations: Vec<f64> = times.iter().map(|t| (t - median).abs()).collect();
+        // Robust centre and spread (MAD × 1.4826 estimates a normal σ).
+        let centre = median(&round_medians);
+        let deviations: Vec<f64> = times.iter().map(|t| (t - centre).abs()).collect();
         Self {
-            samples_per_second: 1.0 / median,
-            spread: 1.4826 * crate::simgrid::cost::median(&deviations) / median,
+            samples_per_second: 1.0 / centre,
+            spread: 1.4826 * median(&deviations) / centre,
             spp,
             jobs_measured: times.len() as u32,
             time_scale: 1.0,
@@ -76,6 +95,17 @@ impl CostModel {
         let factor = (1.0 + self.spread * standard_normal(rng)).max(MIN_FACTOR);
         self.mean_job_time(pixels).mul_f64(factor)
     }
+}
+
+/// CPU time consumed by the calling thread, in seconds (NaN where the clock fails).
+pub fn thread_cpu_seconds() -> f64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid out-pointer; this clock exists on every Linux kernel.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 /// Median of a non-empty slice (0 when empty).

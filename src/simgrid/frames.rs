@@ -12,6 +12,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use glam::Vec3;
 use gridlight_actors::packing::encode_rgb9e5;
 use gridlight_actors::state::SceneState;
 use rayon::prelude::*;
@@ -136,6 +137,12 @@ const CHUNK: u32 = 2048;
 
 /// One complete frame, packed, rendered on every core.
 fn render_frame(scene: &RenderScene, frame: u64, pixels: u32) -> Vec<u32> {
+    render_reflected(scene, frame, pixels).into_iter().map(encode_rgb9e5).collect()
+}
+
+/// One complete frame's reflected radiance (what workers send, unpacked), rendered on
+/// every core with frame number `frame`'s sample seeds.
+pub fn render_reflected(scene: &RenderScene, frame: u64, pixels: u32) -> Vec<Vec3> {
     let chunks: Vec<u32> = (0..pixels).step_by(CHUNK as usize).collect();
     chunks
         .par_iter()
@@ -143,7 +150,7 @@ fn render_frame(scene: &RenderScene, frame: u64, pixels: u32) -> Vec<u32> {
             let ids: Vec<u32> = (start..(start + CHUNK).min(pixels)).collect();
             let mut out = Vec::new();
             render_pixels(scene, frame, &ids, &mut out);
-            out.into_iter().map(|s| encode_rgb9e5(s.reflected)).collect::<Vec<_>>()
+            out.into_iter().map(|s| s.reflected).collect::<Vec<_>>()
         })
         .collect()
 }

@@ -8,7 +8,7 @@
 //! hundreds of simulated workers fit in one process.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use gridlight_actors::integrity::ResultKey;
@@ -68,6 +68,18 @@ pub struct SimConnection {
     rng: rand::rngs::StdRng,
     /// Bumped when the worker pauses: answers still pending are then dropped.
     epoch: Arc<AtomicU64>,
+    /// Jobs held and not yet answered, in the order the core takes them.
+    held: Vec<Held>,
+}
+
+/// A job the simulated core holds: when it starts and ends, and whether it was superseded.
+struct Held {
+    frame: u64,
+    set: u32,
+    version: StateVersion,
+    starts: Instant,
+    ends: Instant,
+    dropped: Arc<AtomicBool>,
 }
 
 impl SimConnection {
@@ -78,6 +90,7 @@ impl SimConnection {
             busy_until: Instant::now(),
             rng: rand::rngs::StdRng::seed_from_u64(seed),
             epoch: Arc::new(AtomicU64::new(0)),
+            held: Vec::new(),
         }
     }
 
@@ -90,6 +103,7 @@ impl SimConnection {
         results: &mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     ) -> Result<(), WorkerError> {
         self.grid.newest_frame.fetch_max(job.frame, Ordering::Relaxed);
+        self.supersede_older(job.state.version, results);
         let pixels = table.pixels(job.set).ok_or_else(|| {
             WorkerError::Protocol(format!("job names set {} of {}", job.set, table.sets()))
         })?;
@@ -122,19 +136,121 @@ impl SimConnection {
             took.as_micros() as u64,
         );
         let (epoch, queued_in) = (Arc::clone(&self.epoch), self.epoch.load(Ordering::Acquire));
+        let dropped = Arc::new(AtomicBool::new(false));
+        self.held.push(Held {
+            frame: job.frame,
+            set: job.set,
+            version: job.state.version,
+            starts: done - took,
+            ends: done,
+            dropped: Arc::clone(&dropped),
+        });
         let results = results.clone();
         tokio::spawn(async move {
             tokio::time::sleep_until(done).await;
-            if epoch.load(Ordering::Acquire) == queued_in {
+            if epoch.load(Ordering::Acquire) == queued_in && !dropped.load(Ordering::Acquire) {
                 let _ = results.send(Ok(Answer::Rendered(result)));
             }
         });
         Ok(())
     }
 
+    /// A job of `version` came: jobs of older versions held and not yet started are
+    /// answered superseded and free the core, as a real worker's render thread does
+    /// (their pixels would show a view the user has left).
+    fn supersede_older(
+        &mut self,
+        version: StateVersion,
+        results: &mpsc::UnboundedSender<Result<Answer, WorkerError>>,
+    ) {
+        let now = Instant::now();
+        self.held.retain(|h| h.ends > now);
+        let mut kept = Vec::with_capacity(self.held.len());
+        let mut busy_until = now;
+        // Jobs come in version order, so the dropped ones are the last held: the kept ones
+        // keep their times.
+        for h in self.held.drain(..) {
+            if h.version < version && h.starts > now {
+                h.dropped.store(true, Ordering::Release);
+                let _ = results.send(Ok(Answer::Superseded { frame: h.frame, set: h.set }));
+            } else {
+                busy_until = busy_until.max(h.ends);
+                kept.push(h);
+            }
+        }
+        self.busy_until = busy_until;
+        self.held = kept;
+    }
+
     /// The worker paused: every job it holds is lost, and its core is free.
     pub fn discard_queued(&mut self) {
         self.epoch.fetch_add(1, Ordering::AcqRel);
         self.busy_until = Instant::now();
+        self.held.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::testscenes;
+    use gridlight_actors::protocol::{Partition, SetsConfig};
+
+    /// A grid with two views of an 8×8 Cornell box, jobs of 200 ms.
+    fn grid() -> (Arc<SimGrid>, SceneState, SceneState, SetTable) {
+        let (assets, mut state) = testscenes::cornell_box(8, 8);
+        state.render.spp = 1;
+        let mut moved = state.clone();
+        moved.camera.position.x += 0.1;
+        moved.version += 1;
+        let cost = crate::simgrid::CostModel {
+            samples_per_second: 16.0 / 0.2,
+            spread: 0.0,
+            spp: 1,
+            jobs_measured: 2,
+            time_scale: 1.0,
+        };
+        let mut cache = FrameCache::new(8, 8, cost);
+        cache.add_state(&assets, &state, 1).expect("rendered");
+        cache.add_state(&assets, &moved, 1).expect("rendered");
+        let sets = SetsConfig { sets: 4, partition: Partition::QuasiRandom };
+        let table = SetTable::new(state.resolution, sets).expect("sets");
+        (Arc::new(SimGrid::new(cache)), state, moved, table)
+    }
+
+    #[tokio::test]
+    async fn a_newer_views_job_supersedes_the_held_jobs_not_yet_started() {
+        let (grid, old, new, table) = grid();
+        let key = ResultKey::derive(None, &[0; gridlight_actors::auth::NONCE_LEN]);
+        let (tx, mut rx) = mpsc::unbounded_channel();
+        let mut conn = SimConnection::new(grid, 1);
+        let job = |frame, set, state: &SceneState| RenderJob {
+            frame,
+            set,
+            state: Arc::new(state.clone()),
+        };
+        let t0 = Instant::now();
+        conn.submit(&job(1, 0, &old), &table, &key, &tx).expect("held");
+        conn.submit(&job(1, 1, &old), &table, &key, &tx).expect("held");
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+        conn.submit(&job(2, 2, &new), &table, &key, &tx).expect("held");
+        // The second old job had not started: answered at once, never rendered.
+        match rx.recv().await {
+            Some(Ok(Answer::Superseded { frame: 1, set: 1 })) => {}
+            other => panic!("expected the held old job superseded, got {other:?}"),
+        }
+        // The job in progress finishes; the new view's job follows it, not the dropped one.
+        let mut done = Vec::new();
+        while done.len() < 2 {
+            match rx.recv().await {
+                Some(Ok(Answer::Rendered(r))) => done.push((r.set, t0.elapsed())),
+                other => panic!("unexpected {other:?}"),
+            }
+        }
+        assert_eq!(done.iter().map(|d| d.0).collect::<Vec<_>>(), [0, 2]);
+        // Two jobs' time (400 ms), not three: timers are absolute, so a loaded machine
+        // delays an answer but does not add the dropped job's 200 ms.
+        let new_done = done[1].1.as_millis();
+        assert!((400..550).contains(&new_done), "the new view's job ended at {new_done} ms");
     }
 }

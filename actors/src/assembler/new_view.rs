@@ -12,6 +12,9 @@
 //! - a frame of the new state is shown as soon as it has a result, and skipped when it has
 //!   none while a later frame has some.
 //!
+//! At a fixed frame rate the user chose the period: the new state's frames wait it like
+//! any other ([`NewView::decide_fixed_rate`]); outdated frames are still not waited for.
+//!
 //! Once it has been shown the heuristic decides again, and the frames of that state
 //! accumulate (progressive refinement). Frames decided by this rule are left out of the
 //! heuristic's frame time, like abandoned ones: their time is the edit's, not the grid's.
@@ -49,6 +52,23 @@ impl NewView {
             (false, false) => None,
         }
     }
+
+    /// The decision at a fixed frame rate: the user chose the period, and the master waits
+    /// it before reconstruction (paper §4.3), for the new view's frames too, so that what
+    /// a frame holds says what the grid delivered in one period (Figure 5's Q_t). Frames
+    /// of an outdated state are still never waited for.
+    pub fn decide_fixed_rate(
+        &self,
+        frame: FrameNo,
+        back: u32,
+        later_has_results: bool,
+    ) -> Option<Decision> {
+        if frame < self.outdated_before {
+            self.decide(frame, back, later_has_results)
+        } else {
+            None
+        }
+    }
 }
 
 #[cfg(test)]
@@ -81,5 +101,14 @@ mod tests {
         assert_eq!(v.decide(10, 0, false), None, "nothing yet: the heuristic waits");
         let shown = NewView { outdated_before: 10, last_shown: Some(10) };
         assert_eq!(shown.decide(11, 1, false), None, "the new view is shown: it accumulates");
+    }
+
+    #[test]
+    fn at_a_fixed_rate_the_new_views_frames_wait_their_period_and_outdated_ones_do_not() {
+        let v = NewView { outdated_before: 10, last_shown: Some(5) };
+        assert_eq!(v.decide_fixed_rate(10, 1, false), None, "the fixed rate decides");
+        assert_eq!(v.decide_fixed_rate(10, 0, true), None);
+        assert_eq!(v.decide_fixed_rate(7, 3, false), SHOW, "an outdated frame is not waited for");
+        assert_eq!(v.decide_fixed_rate(7, 3, true), SKIP);
     }
 }

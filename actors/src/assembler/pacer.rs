@@ -94,7 +94,10 @@ impl Pacer {
         };
         let elapsed = now.saturating_duration_since(start);
         let view = NewView { outdated_before: self.outdated_before, last_shown: self.last_shown };
-        let around_edit = view.decide(frame, p.back, later_has_results);
+        let around_edit = match self.pacing {
+            Pacing::FixedFps(_) => view.decide_fixed_rate(frame, p.back, later_has_results),
+            Pacing::Heuristic(_) => view.decide(frame, p.back, later_has_results),
+        };
         let abandoned = frame < self.abandoned_before || around_edit.is_some();
         let judged_at = if abandoned { Duration::MAX } else { elapsed };
         let heuristic = decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time);

@@ -15,6 +15,7 @@ use serde::Serialize;
 
 use crate::assets::Assets;
 use crate::render::{render_pixels_counted, RenderError, RenderScene, Strategy};
+use crate::simgrid::cost::thread_cpu_seconds;
 
 /// The settings of one benchmark run.
 #[derive(Clone, Copy, Debug)]
@@ -100,17 +101,6 @@ pub fn bench_scene(
         rays: stats.rays,
         runs: settings.runs.max(1),
     })
-}
-
-/// CPU time consumed by the calling thread, in seconds.
-fn thread_cpu_seconds() -> f64 {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: `ts` is a valid out-pointer; this clock exists on every Linux kernel.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return f64::NAN;
-    }
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 #[cfg(test)]

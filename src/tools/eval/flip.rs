@@ -159,16 +159,28 @@ pub fn flip(
     height: usize,
     ppd: f32,
 ) -> FlipResult {
+    let linear = |img: &[Vec3]| -> Vec<Vec3> {
+        img.iter()
+            .map(|c| Vec3::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z)))
+            .collect()
+    };
+    flip_linear(&linear(reference), &linear(test), width, height, ppd)
+}
+
+/// FLIP between two linear-RGB display images (clamped to [0, 1]), as HDR-FLIP gives
+/// its tone-mapped exposures ([`super::hdr_flip`]).
+pub fn flip_linear(
+    reference: &[Vec3],
+    test: &[Vec3],
+    width: usize,
+    height: usize,
+    ppd: f32,
+) -> FlipResult {
     assert_eq!(reference.len(), test.len(), "images of different sizes");
     assert_eq!(reference.len(), width * height, "image size");
     let m = linrgb_to_xyz();
     let to_ycxcz = |img: &[Vec3]| -> Vec<Vec3> {
-        img.iter()
-            .map(|c| {
-                let lin = Vec3::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z));
-                xyz_to_ycxcz(m * lin.clamp(Vec3::ZERO, Vec3::ONE))
-            })
-            .collect()
+        img.iter().map(|lin| xyz_to_ycxcz(m * lin.clamp(Vec3::ZERO, Vec3::ONE))).collect()
     };
     let (r, t) = (to_ycxcz(reference), to_ycxcz(test));
 

@@ -5,7 +5,8 @@
 //! - [`sequence`]: an interaction sequence, spatio-temporal against spatial-only
 //!   (Figure 9), and a static view converging as frames accumulate (Figure 8);
 //! - [`paper`]: the paper's section 6 as one report (`eval paper`), on simulated grids;
-//! - metrics: FLIP ([`flip`]), RMSE and SSIM ([`metrics`]).
+//! - metrics: FLIP ([`flip`]; HDR-FLIP for linear radiance, [`hdr_flip`]), RMSE and SSIM
+//!   ([`metrics`]).
 //!
 //! Frames come from a [`FrameSource`]: the path tracer for real scenes, or the analytic
 //! scene of `reconstruct::synthetic` where no renderer is wanted.
@@ -20,6 +21,7 @@ use crate::reconstruct::tonemap::tonemap;
 
 pub mod filter;
 pub mod flip;
+pub mod hdr_flip;
 pub mod loss;
 pub mod metrics;
 pub mod paper;

@@ -88,6 +88,14 @@ pub struct Fig10 {
     pub seconds: f64,
 }
 
+/// Beyond the paper's parameters: the sessions across rate-limited links.
+#[derive(Clone, Debug, Serialize)]
+pub struct Lan {
+    pub workers: Vec<u32>,
+    pub links_mbit: Vec<u32>,
+    pub seconds: f64,
+}
+
 /// Everything the experiments are run with.
 #[derive(Clone, Debug, Serialize)]
 pub struct Options {
@@ -108,6 +116,7 @@ pub struct Options {
     pub fig8: Fig8,
     pub fig9: Fig9,
     pub fig10: Fig10,
+    pub lan: Lan,
 }
 
 impl Options {
@@ -121,7 +130,7 @@ impl Options {
                 height: 120,
                 sets: 64,
                 grid_sets: GRID_SETS,
-                cached_frames: 8,
+                cached_frames: 16,
                 fig3: Fig3 { losses: vec![0.25, 0.5, 0.75] },
                 fig5: Fig5 { workers: 32, fps: 4.0, curve: Curve::Sine, period: 20, path },
                 table1: Table1 {
@@ -135,10 +144,11 @@ impl Options {
                     variable: 96,
                     seconds: 3.0,
                     threshold: 0.05,
-                    gold_frames: 8,
+                    gold_frames: 32,
                 },
                 fig9: Fig9 { frames: 8, loss: 0.5 },
                 fig10: Fig10 { workers: vec![8, 32, 128, 256], seconds: 3.0 },
+                lan: Lan { workers: vec![32], links_mbit: vec![100, 1000], seconds: 2.0 },
             }
         } else {
             Self {
@@ -147,7 +157,7 @@ impl Options {
                 height: 240,
                 sets: 64,
                 grid_sets: GRID_SETS,
-                cached_frames: 32,
+                cached_frames: 64,
                 fig3: Fig3 { losses: vec![0.25, 0.5, 0.75] },
                 fig5: Fig5 { workers: 96, fps: 6.66, curve: Curve::Sine, period: 100, path },
                 table1: Table1 {
@@ -166,10 +176,11 @@ impl Options {
                     variable: 96,
                     seconds: 20.0,
                     threshold: 0.05,
-                    gold_frames: 32,
+                    gold_frames: 200,
                 },
                 fig9: Fig9 { frames: 24, loss: 0.5 },
                 fig10: Fig10 { workers: vec![1, 2, 4, 8, 16, 32, 64, 128, 256], seconds: 10.0 },
+                lan: Lan { workers: vec![32, 96], links_mbit: vec![100, 1000], seconds: 8.0 },
             }
         }
     }
@@ -195,6 +206,7 @@ pub struct Context {
     pub fig8: Fig8,
     pub fig9: Fig9,
     pub fig10: Fig10,
+    pub lan: Lan,
 }
 
 impl Context {
@@ -220,6 +232,7 @@ impl Context {
             fig8: opts.fig8.clone(),
             fig9: opts.fig9.clone(),
             fig10: opts.fig10.clone(),
+            lan: opts.lan.clone(),
             opts,
             out: out.to_path_buf(),
             exe: std::env::current_exe().context("finding the gridlight executable")?,

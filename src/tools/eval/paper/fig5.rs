@@ -5,7 +5,7 @@ use gridlight_actors::master::Pacing;
 use serde_json::json;
 
 use super::context::{Context, Cores, Fig5};
-use super::grid::{run_session, Session};
+use super::grid::{run_session, FrameRecord, PathPacing, Session};
 use super::plot::{self, Chart, Series};
 use super::stats::correlation;
 use super::{Claim, Section};
@@ -34,7 +34,11 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
         .prepared("cornell-box", true, Cores::Paper)?
         .ok_or_else(|| anyhow::anyhow!("no Cornell box"))?;
     let path = ctx.path()?;
-    let seconds = path.last().map_or(0.0, |(at, _)| at.as_secs_f64()) + HOLD_SECONDS;
+    // The view holds until the path's first edit, then one edit per shown frame.
+    let fps = f64::from(p.fps);
+    let seconds = path.first().map_or(0.0, |(at, _)| at.as_secs_f64())
+        + path.len() as f64 / fps
+        + HOLD_SECONDS;
     let availability = Availability { curve: p.curve, n: p.workers, period: p.period };
     ctx.step(format!("fig5: {seconds:.0} s session, {} workers varying", p.workers));
     let session = Session {
@@ -42,34 +46,41 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
         pacing: Pacing::FixedFps(p.fps),
         seconds,
         path: path.clone(),
+        path_pacing: PathPacing::PerFrame,
         pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
+        network: None,
         gold: None,
     };
     let out = run_session(&ctx.exe, &prepared, &session)?;
+    // Like with like: the frames of the newest view, each given its fixed period. A frame
+    // an edit outdated is shown at once with what it has (the display never waits for an
+    // older view), so its Q_t measures the edit's timing, not the resources.
+    let current: Vec<&FrameRecord> = out.frames.iter().filter(|f| f.current).collect();
+    let outdated = out.frames.len() - current.len();
     // Shown frame i of the measured sequence; the master's resources are the live
     // workers it counted when it showed the frame (R_i as the grid delivered it).
-    let q: Vec<(f64, f64)> = out.frames.iter().enumerate().map(|(i, f)| (i as f64, f.q)).collect();
+    let q: Vec<(f64, f64)> = current.iter().enumerate().map(|(i, f)| (i as f64, f.q)).collect();
     let live: Vec<(f64, f64)> =
-        out.frames.iter().enumerate().map(|(i, f)| (i as f64, f.workers as f64)).collect();
+        current.iter().enumerate().map(|(i, f)| (i as f64, f.workers as f64)).collect();
     let pairs: Vec<(f64, f64)> = q.iter().zip(&live).map(|(a, b)| (a.1, b.1)).collect();
     let rho_raw = correlation(&pairs);
-    // Frames whose view changed just before they were due lose their older jobs whatever
-    // the resources: a moving average over SMOOTH frames shows the trend under that.
+    // A moving average over SMOOTH frames shows the trend under the per-frame noise of
+    // the modelled job times.
     let q_smooth = moving_average(&q, SMOOTH);
     let smooth_pairs: Vec<(f64, f64)> =
         q_smooth.iter().zip(&live).map(|(a, b)| (a.1, b.1)).collect();
     let rho = correlation(&smooth_pairs);
-    // Still (before the first edit) and moving (from it on) apart: the edits, not the
-    // resources, set Q_t's level while the camera moves.
-    let first_version = out.frames.first().map_or(0, |f| f.version);
-    let still = out.frames.iter().take_while(|f| f.version == first_version).count();
+    // Still (before the first edit) and moving (from it on) apart.
+    let first_version = current.first().map_or(0, |f| f.version);
+    let still = current.iter().take_while(|f| f.version == first_version).count();
     let rho_still = correlation(&smooth_pairs[..still]);
     let rho_moving = correlation(&smooth_pairs[still..]);
+    let rho_moving_raw = correlation(&pairs[still..]);
+    let mean_q_still = super::grid::mean(current[..still].iter().map(|f| f.q));
+    let mean_q_moving = super::grid::mean(current[still..].iter().map(|f| f.q));
     // The curve itself at each frame's time (the grid follows it by its own clock, which
     // started a fraction of a second earlier).
-    let fps = f64::from(p.fps);
-    let r: Vec<(f64, f64)> = out
-        .frames
+    let r: Vec<(f64, f64)> = current
         .iter()
         .enumerate()
         .map(|(i, f)| (i as f64, f64::from(availability.at((f.t * fps) as u64))))
@@ -111,40 +122,47 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
                 moves with R_i. No correlation is given; the curves track each other."
             .into(),
         ours: format!(
-            "The Cornell box with the recorded camera path `{}` (over {:.0} s), \
-             fixed {} fps, {} simulated workers varying as R_i (curve {:?}, period {} frames; \
-             {} connections open, those above R_i paused by the clock at the fixed rate). The \
-             recorded path has an edit every 0.1 s; it is applied at most once per shown frame \
-             ({} edits kept), as a window applies input once per frame: every edit discards \
-             the queued jobs of the older view, and ten a second leave few jobs that finish \
-             in time. {} frames shown, mean Q_t \
-             {mean_q:.2}, useful fraction {:.2}. Correlation per frame of Q_t with the live \
-             workers the master counted: {} frame by frame, **{rho_text}** for Q_t averaged \
-             over {SMOOTH} frames (frames whose view changed just before they were due lose \
-             their older jobs whatever the resources, which makes Q_t alternate); while the \
-             view is still (the first {still} frames) **{}**, while the camera moves **{}**.",
+            "The Cornell box with the recorded camera path `{}` ({} edits, at most one per \
+             frame period of the fixed rate), fixed {} fps, {} simulated workers varying as R_i \
+             (curve {:?}, period {} frames; {} connections open, those above R_i paused by the \
+             clock at the fixed rate). As in the paper's sequences the camera moves once per \
+             frame: the view holds still for {:.0} s, then the next edit is made as soon as a \
+             frame of the newest view is shown, so each view has one whole frame period on the \
+             grid (at a fixed rate the display waits its period for the new view's frames too, \
+             paper §4.3). Every edit still discards the older view's queued jobs, and a frame \
+             the edit outdated is shown at once with what it has: {outdated} such frames are \
+             left out of Q_t below (compared like with like: each frame of the view the user \
+             sees, against the resources of its period). {} frames of the current view shown, \
+             mean Q_t {mean_q_still:.2} still and {mean_q_moving:.2} moving, useful fraction \
+             {:.2}. Correlation of Q_t with the live workers the master counted: {} frame by \
+             frame, **{rho_text}** for Q_t averaged over {SMOOTH} frames; while the view is \
+             still (the first {still} frames) **{}**, while the camera moves **{}** ({} frame \
+             by frame).",
             p.path.display(),
-            seconds,
+            path.len(),
             p.fps,
             p.workers,
             p.curve,
             p.period,
             availability.peak(),
-            path.len(),
-            out.frames.len(),
+            path.first().map_or(0.0, |(at, _)| at.as_secs_f64()),
+            current.len(),
             out.useful_fraction,
             rho_raw.map_or("undefined".to_string(), |v| format!("{v:.2}")),
             rho_still.map_or("undefined".to_string(), |v| format!("{v:.2}")),
             rho_moving.map_or("undefined".to_string(), |v| format!("{v:.2}")),
+            rho_moving_raw.map_or("undefined".to_string(), |v| format!("{v:.2}")),
         ),
         comparison: format!(
-            "{} We plot Q_t (the quantity the fixed rate trades away) rather than VDP against a \
-             96-worker gold sequence. The fixed rate is chosen so that the grid cannot finish a \
-             frame in time (else Q_t would be 1 throughout): the paper's cores were slower than \
-             ours, see the note on modelled cores.",
+            "{} Q_t while moving is lower than still: after each edit the workers first finish \
+             the job they are rendering (of the older view) before the new view's jobs reach \
+             them. We plot Q_t (the quantity the fixed rate trades away) rather than VDP \
+             against a 96-worker gold sequence. The fixed rate is chosen so that the grid \
+             cannot finish a frame in time (else Q_t would be 1 throughout): the paper's cores \
+             were slower than ours, see the note on modelled cores.",
             match (rho_still, rho_moving) {
                 (Some(a), Some(b)) if a > 0.5 && b > 0.5 => "Agrees: Q_t follows the resources, still and moving.",
-                (Some(a), _) if a > 0.5 => "Agrees while the view is still: Q_t follows the resources. While the camera moves, the edits set Q_t's level (every edit discards the older view's queued jobs) and the resources move it less.",
+                (Some(a), _) if a > 0.5 => "Agrees while the view is still: Q_t follows the resources; while the camera moves it follows them less closely in this run.",
                 _ => "Differs: Q_t does not follow the resources in this run.",
             }
         ),
@@ -164,7 +182,8 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
             "workers": p.workers, "fps": p.fps, "curve": p.curve, "period": p.period,
             "correlation_q_r": rho, "correlation_q_r_raw": rho_raw, "smooth_frames": SMOOTH,
             "correlation_still": rho_still, "correlation_moving": rho_moving, "still_frames": still,
-            "mean_q": mean_q,
+            "mean_q": mean_q, "mean_q_still": mean_q_still, "mean_q_moving": mean_q_moving,
+            "correlation_moving_raw": rho_moving_raw, "outdated_frames": outdated,
             "useful_fraction": out.useful_fraction, "frames": out.frames,
             "path_edits": path.len(), "seconds": seconds,
         }),

@@ -3,21 +3,24 @@
 //!
 //! [`Prepared`] measures the scene's cost and renders the frame cache once (written to a
 //! file the simulated-worker processes load); [`run_session`] starts the master in this
-//! process with a sink that records every shown frame (and, for Figure 8, composes it and
-//! measures its FLIP to a gold standard), starts the grid as `gridlight simgrid` child
-//! processes (a few of them, each holding many connections), plays the camera path if
-//! any, and returns per-frame records and the useful fraction of the returned results.
+//! process with a sink that records every shown frame (and, for Figure 8, keeps it to be
+//! composed after the session and measured against a gold standard), starts the grid as
+//! `gridlight simgrid` child processes (a few of them, each holding many connections; on
+//! a `tools::lan` testbed, on its worker hosts), plays the camera path if any (at its
+//! recorded times, or one edit per shown frame), and returns per-frame records and the
+//! useful fraction of the returned results.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
-use gridlight_actors::edit::Edit;
+use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::master::{self, MasterConfig, Pacing, ShownFrame, SinkError};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::sets::SetTable;
@@ -34,11 +37,13 @@ use crate::master::view::View;
 use crate::reconstruct::ReconstructParams;
 use crate::render::RenderScene;
 use crate::simgrid::{Availability, CostModel, FrameCache};
+use crate::tools::eval::{flip, hdr_flip::hdr_flip};
+use crate::tools::lan::{netns, Testbed};
 
 /// Sets of the jobs timed to measure a scene's cost.
 const MEASURE_SETS: u32 = 64;
-/// Jobs timed to measure a scene's cost.
-const COST_JOBS: u32 = 24;
+/// Jobs timed to measure a scene's cost (in `CostModel::measure`'s rounds).
+const COST_JOBS: u32 = 40;
 /// Simulated workers per child process at most.
 const WORKERS_PER_PROCESS: u32 = 128;
 /// Longest wait for the grid to connect and the first frames to show.
@@ -141,10 +146,29 @@ pub struct Session {
     /// Measured time after the warm-up (a camera path plays from its start).
     pub seconds: f64,
     pub path: Vec<(Duration, Edit)>,
+    /// How the camera path is played.
+    pub path_pacing: PathPacing,
     /// Jobs a worker holds (k).
     pub pipeline: u32,
-    /// Compose each shown frame and measure FLIP to this linear image (Figure 8).
+    /// Hosts of a network testbed (`tools::lan`): the master on one, the grid's processes
+    /// on the others, every link rate-limited; `None`: loopback.
+    pub network: Option<Arc<Testbed>>,
+    /// Compose each shown frame and measure FLIP to this linear image (Figure 8). The
+    /// frames are kept during the session and composed after it, so that reconstruction
+    /// on this machine's CPU neither slows the display nor takes the cores the grid's
+    /// simulation runs on (the paper reconstructed on the master's GPU).
     pub gold: Option<Arc<Vec<Vec3>>>,
+}
+
+/// How a session plays its camera path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathPacing {
+    /// Each edit at its recorded time, whatever the display shows.
+    Timed,
+    /// As the paper's interactive sequences: the view holds until the path's first edit
+    /// is due, then the next edit is made as soon as a frame of the newest view is shown,
+    /// so that each view gets one whole frame period on the grid.
+    PerFrame,
 }
 
 /// One shown frame.
@@ -160,8 +184,16 @@ pub struct FrameRecord {
     pub paused_workers: u64,
     /// The scene-state version the frame was rendered with.
     pub version: u64,
+    /// Whether that was the newest state when the frame was shown (false: an edit had
+    /// outdated it, and the display showed it without waiting).
+    pub current: bool,
+    /// Results of this frame that came back in time (its Q_t × S).
+    pub jobs_back: u32,
     /// FLIP to the gold standard, when one was given.
     pub flip: Option<f64>,
+    /// HDR-FLIP of the linear image to the gold standard, for some of those frames
+    /// ([`HDR_POINTS`] per session).
+    pub hdr_flip: Option<f64>,
 }
 
 /// What a session measured.
@@ -181,12 +213,19 @@ pub struct Outcome {
     pub dropped_late: u64,
     pub frames_skipped: u64,
     pub seconds: f64,
+    /// Bytes into and out of the master's host over its link, on a testbed.
+    pub link_rx_bytes: Option<u64>,
+    pub link_tx_bytes: Option<u64>,
 }
 
 /// Runs `session` on `prepared`'s scene; `exe` is the `gridlight` binary.
 pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow::Result<Outcome> {
+    let listen = match &session.network {
+        Some(bed) => SocketAddr::new(bed.master().address.into(), 0),
+        None => SocketAddr::from(([127, 0, 0, 1], 0)),
+    };
     let mut config = MasterConfig::new(
-        SocketAddr::from(([127, 0, 0, 1], 0)),
+        listen,
         SetsConfig { sets: prepared.sets, partition: Partition::QuasiRandom },
     );
     config.pacing = session.pacing;
@@ -194,27 +233,25 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
     let peak = session.availability.peak();
     config.max_connections = config.max_connections.max(peak as usize + 8);
     let records = Arc::new(Mutex::new(Vec::new()));
-    let composer = match &session.gold {
-        Some(_) => Some(
-            Composer::new(
-                Arc::clone(&prepared.assets),
-                &prepared.state,
-                ReconstructParams::default(),
-                Backend::Cpu,
-            )
-            .context("preparing reconstruction")?,
-        ),
-        None => None,
-    };
+    let kept = Arc::new(Mutex::new(Vec::new()));
     let clock = Arc::new(Mutex::new(Clock::default()));
+    let newest = Arc::new(AtomicU64::new(prepared.state.version));
+    let (shown_tx, shown_rx) = mpsc::channel();
     let sink = RecordingSink {
         records: Arc::clone(&records),
-        composer,
-        gold: session.gold.clone(),
+        kept: session.gold.as_ref().map(|_| Arc::clone(&kept)),
         clock: Arc::clone(&clock),
+        newest: Arc::clone(&newest),
+        shown: shown_tx,
     };
-    let handle = master::start(config, prepared.state.clone(), AssetStore::new(), Box::new(sink))
-        .context("starting the master")?;
+    let start = || master::start(config, prepared.state.clone(), AssetStore::new(), Box::new(sink));
+    let handle = match &session.network {
+        // The master's threads inherit the namespace of the thread that starts them.
+        Some(bed) => netns::run_in(&bed.master().namespace, start)
+            .context("entering the master's network namespace")?,
+        None => start(),
+    }
+    .context("starting the master")?;
     let _grid = spawn_grid(exe, handle.local_addr(), prepared, session)?;
 
     let deadline = Instant::now() + WARMUP_TIMEOUT;
@@ -228,23 +265,46 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         }
         std::thread::sleep(Duration::from_millis(20));
     }
+    if session.gold.is_some() {
+        // Converging starts when the grid is there: an edit that changes nothing but the
+        // version restarts the display's accumulation (the cached frames are found by
+        // content, so the workers answer it as before).
+        let v = handle.edit(Edit::Camera(CameraEdit::default())).context("restarting the view")?;
+        newest.fetch_max(v, Ordering::AcqRel);
+    }
     clock.lock().unwrap_or_else(|p| p.into_inner()).connected = Some(Instant::now());
     if !handle.wait_for_frames(handle.report().shown + 2, WARMUP_TIMEOUT) {
         bail!("no frames shown with {want} simulated workers");
     }
+    let link = |bed: &Arc<Testbed>| bed.counters(bed.master()).ok();
+    let link_before = session.network.as_ref().and_then(link);
     let before = Sample::take(&handle);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = true;
-    if !session.path.is_empty() {
-        handle.play_script(session.path.clone());
+    match session.path_pacing {
+        PathPacing::Timed => {
+            if !session.path.is_empty() {
+                handle.play_script(session.path.clone());
+            }
+            std::thread::sleep(Duration::from_secs_f64(session.seconds));
+        }
+        PathPacing::PerFrame => {
+            // Frames shown during the warm-up are not the path's.
+            while shown_rx.try_recv().is_ok() {}
+            play_per_frame(&handle, &session.path, session.seconds, &shown_rx, &newest)?;
+        }
     }
-    std::thread::sleep(Duration::from_secs_f64(session.seconds));
     let after = Sample::take(&handle);
+    let link_after = session.network.as_ref().and_then(link);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = false;
     drop(_grid);
     handle.stop().context("stopping the master")?;
 
-    let all_frames: Vec<FrameRecord> =
+    let mut all_frames: Vec<FrameRecord> =
         std::mem::take(&mut *records.lock().unwrap_or_else(|p| p.into_inner()));
+    if let Some(gold) = &session.gold {
+        let kept = std::mem::take(&mut *kept.lock().unwrap_or_else(|p| p.into_inner()));
+        measure_flip(prepared, gold, &kept, &mut all_frames)?;
+    }
     let frames: Vec<FrameRecord> = all_frames.iter().filter(|f| f.measured).cloned().collect();
     let seconds = after.at.duration_since(before.at).as_secs_f64();
     let (used, unused, late) =
@@ -260,7 +320,89 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         dropped_late: late,
         frames_skipped: after.skipped - before.skipped,
         seconds,
+        link_rx_bytes: link_before.zip(link_after).map(|(b, a)| a.rx_bytes - b.rx_bytes),
+        link_tx_bytes: link_before.zip(link_after).map(|(b, a)| a.tx_bytes - b.tx_bytes),
     })
+}
+
+/// Plays `path` one edit per shown frame of the newest view ([`PathPacing::PerFrame`]),
+/// from the path's first edit time on, for `seconds` in all.
+fn play_per_frame(
+    handle: &master::MasterHandle,
+    path: &[(Duration, Edit)],
+    seconds: f64,
+    shown: &mpsc::Receiver<u64>,
+    newest: &AtomicU64,
+) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let end = started + Duration::from_secs_f64(seconds);
+    let hold = path.first().map_or(Duration::ZERO, |(at, _)| *at);
+    std::thread::sleep(hold.min(end.saturating_duration_since(started)));
+    let mut edits = path.iter().map(|(_, e)| e);
+    let mut next = edits.next();
+    while let Some(edit) = next {
+        let version = handle.edit(edit.clone()).context("editing the camera")?;
+        newest.fetch_max(version, Ordering::AcqRel);
+        next = edits.next();
+        // Wait for a frame of this view (frames of older views are shown without waiting).
+        loop {
+            let left = end.saturating_duration_since(Instant::now());
+            match shown.recv_timeout(left) {
+                Ok(v) if v >= version => break,
+                Ok(_) => continue,
+                Err(_) => return Ok(()),
+            }
+        }
+    }
+    std::thread::sleep(end.saturating_duration_since(Instant::now()));
+    Ok(())
+}
+
+/// Frames per session whose HDR-FLIP is measured (it costs one LDR-FLIP per exposure).
+pub const HDR_POINTS: usize = 24;
+
+/// Composes the kept frames in order, as the display would have, and sets each record's
+/// FLIP to `gold` (and HDR-FLIP for [`HDR_POINTS`] of them, evenly spaced, the last
+/// included).
+fn measure_flip(
+    prepared: &Prepared,
+    gold: &[Vec3],
+    kept: &[ShownFrame],
+    records: &mut [FrameRecord],
+) -> anyhow::Result<()> {
+    let mut composer = Composer::new(
+        Arc::clone(&prepared.assets),
+        &prepared.state,
+        ReconstructParams::default(),
+        Backend::Cpu,
+    )
+    .context("preparing reconstruction")?;
+    let every = kept.len().div_ceil(HDR_POINTS).max(1);
+    for (i, frame) in kept.iter().enumerate() {
+        let composed = composer.compose(frame, View::Final).context("composing a shown frame")?;
+        let Some(r) = records.iter_mut().find(|r| r.frame == frame.frame) else { continue };
+        let linear = composed.linear.unwrap_or_default();
+        let (w, h) = (frame.state.resolution.width, frame.state.resolution.height);
+        r.flip = Some(super::super::compare(gold, &linear, w, h, 0.0).flip);
+        if i % every == 0 || i + 1 == kept.len() {
+            let hdr = hdr_flip(gold, &linear, w as usize, h as usize, flip::DEFAULT_PPD);
+            r.hdr_flip = Some(hdr.mean);
+        }
+    }
+    Ok(())
+}
+
+impl Outcome {
+    /// Results used per second over whole frames: the results of the measured frames
+    /// after the first, over the time from the first one's display to the last one's.
+    /// A window that cut a frame would count all or none of its results (a quarter of
+    /// the rate with one worker and four frames in the window).
+    pub fn used_per_second(&self) -> Option<f64> {
+        let (first, last) = (self.frames.first()?, self.frames.last()?);
+        let span = last.t - first.t;
+        (span > 0.0)
+            .then(|| self.frames[1..].iter().map(|f| f64::from(f.jobs_back)).sum::<f64>() / span)
+    }
 }
 
 /// Mean of `values` (0 when empty).
@@ -285,7 +427,14 @@ fn spawn_grid(
     let mut first = 0;
     while first < peak {
         let count = WORKERS_PER_PROCESS.min(peak - first);
-        let mut cmd = Command::new(exe);
+        // One process per worker host, round robin, when the grid is on a testbed.
+        let mut cmd = match &session.network {
+            Some(bed) => {
+                let hosts = bed.workers();
+                bed.command(&hosts[(first / WORKERS_PER_PROCESS) as usize % hosts.len()], exe)
+            }
+            None => Command::new(exe),
+        };
         cmd.args(["simgrid", "--master", &master.to_string(), "--cache"])
             .arg(&prepared.cache_file)
             .args(["--grid", &session.availability.n.to_string()])
@@ -313,12 +462,16 @@ fn curve_name(curve: crate::simgrid::Curve) -> &'static str {
     }
 }
 
-/// Records shown frames while the clock runs; composes them for Figure 8.
+/// Records shown frames while the clock runs; keeps them for Figure 8's FLIP.
 struct RecordingSink {
     records: Arc<Mutex<Vec<FrameRecord>>>,
-    composer: Option<Composer>,
-    gold: Option<Arc<Vec<Vec3>>>,
+    /// Where shown frames are kept (without their owners) to be composed afterwards.
+    kept: Option<Arc<Mutex<Vec<ShownFrame>>>>,
     clock: Arc<Mutex<Clock>>,
+    /// The newest scene-state version the session made.
+    newest: Arc<AtomicU64>,
+    /// Each shown frame's state version, for [`PathPacing::PerFrame`].
+    shown: mpsc::Sender<u64>,
 }
 
 /// When the grid had connected, and whether the measured interval runs.
@@ -329,33 +482,34 @@ struct Clock {
 }
 
 impl FrameSink for RecordingSink {
-    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
-        let flip = match (&mut self.composer, &self.gold) {
-            (Some(composer), Some(gold)) => {
-                let composed = composer
-                    .compose(&frame, View::Final)
-                    .map_err(|e| SinkError::Other(Box::new(e)))?;
-                let linear = composed.linear.unwrap_or_default();
-                let res = frame.state.resolution;
-                Some(super::super::compare(gold, &linear, res.width, res.height, 0.0).flip)
-            }
-            _ => None,
-        };
+    fn show(&mut self, mut frame: ShownFrame) -> Result<(), SinkError> {
+        let version = frame.state.version;
+        let current = version >= self.newest.load(Ordering::Acquire);
+        let _ = self.shown.send(version);
+        let (frame_no, stats) = (frame.frame, frame.stats.clone());
+        if let Some(kept) = &self.kept {
+            // Every frame, warm-up included: the display's accumulation starts with the first.
+            frame.owners = Default::default();
+            kept.lock().unwrap_or_else(|p| p.into_inner()).push(frame);
+        }
         let (connected, measured) = {
             let clock = self.clock.lock().unwrap_or_else(|p| p.into_inner());
             (clock.connected, clock.measuring)
         };
         let Some(start) = connected else { return Ok(()) };
-        let s = &frame.stats;
+        let s = &stats;
         self.records.lock().unwrap_or_else(|p| p.into_inner()).push(FrameRecord {
-            frame: frame.frame,
+            frame: frame_no,
             t: start.elapsed().as_secs_f64(),
             measured,
             q: s.q,
             workers: s.workers,
             paused_workers: s.paused_workers,
-            version: frame.state.version,
-            flip,
+            version,
+            current,
+            jobs_back: s.jobs_back,
+            flip: None,
+            hdr_flip: None,
         });
         Ok(())
     }

@@ -1,5 +1,5 @@
 //! `gridlight eval paper` and its experiments (`eval fig3`, `fig5`, `table1`, `fig8`,
-//! `fig9`, `fig10`): the paper's section 6 reproduced beside the paper's own figures.
+//! `fig9`, `fig10`, `lan`): the paper's section 6 reproduced beside the paper's own figures.
 //!
 //! Grids larger than this machine are simulated (`crate::simgrid`): the master, the
 //! network path, the wait heuristic and reconstruction are real; render time and
@@ -11,14 +11,18 @@
 //! - [`context`]: options, scenes and the modelled cores shared by the experiments.
 //! - [`grid`]: one session of the master with a simulated grid.
 //! - [`offline`]: Figures 3 and 9 (reconstruction of complete path-traced frames).
-//! - [`fig5`], [`table1`], [`fig8`], [`fig10`]: sessions on a simulated grid.
+//! - [`fig5`], [`table1`], [`fig8`], [`fig10`]: sessions on a simulated grid; [`lan`]:
+//!   the same across rate-limited links between network namespaces.
+//! - [`gold`]: Figure 8's gold standard, rendered once and cached.
 //! - [`plot`]: PNG line plots. [`stats`]: correlation and medians.
 
 pub mod context;
 pub mod fig10;
 pub mod fig5;
 pub mod fig8;
+pub mod gold;
 pub mod grid;
+pub mod lan;
 pub mod offline;
 pub mod plot;
 pub mod report;
@@ -65,7 +69,7 @@ pub struct Section {
 }
 
 /// Every experiment, in the report's order.
-pub const EXPERIMENTS: [&str; 6] = ["fig3", "fig5", "table1", "fig8", "fig9", "fig10"];
+pub const EXPERIMENTS: [&str; 7] = ["fig3", "fig5", "table1", "fig8", "fig9", "fig10", "lan"];
 
 /// Runs every experiment and writes the report into `ctx`'s output directory.
 pub fn run_all(ctx: &mut Context) -> anyhow::Result<Vec<Section>> {
@@ -88,6 +92,7 @@ pub fn run_one(ctx: &mut Context, id: &str) -> anyhow::Result<Section> {
         "table1" => table1::run(ctx, &ctx.table1.clone())?,
         "fig8" => fig8::run(ctx, &ctx.fig8.clone())?,
         "fig10" => fig10::run(ctx, &ctx.fig10.clone())?,
+        "lan" => lan::run(ctx, &ctx.lan.clone())?,
         other => anyhow::bail!("no experiment `{other}` (known: {})", EXPERIMENTS.join(", ")),
     };
     section.seconds = started.elapsed().as_secs_f64();
