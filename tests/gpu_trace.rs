@@ -41,7 +41,12 @@ fn all_pixels(state: &SceneState) -> Vec<u32> {
     (0..state.resolution.pixels() as u32).collect()
 }
 
-fn gpu_image(t: &GpuTracer, scene: &RenderScene, frame: u64, strategy: Strategy) -> Vec<PixelSample> {
+fn gpu_image(
+    t: &GpuTracer,
+    scene: &RenderScene,
+    frame: u64,
+    strategy: Strategy,
+) -> Vec<PixelSample> {
     let pixels = all_pixels(scene.state());
     let uploaded = t.upload(scene);
     let mut out = Vec::new();
@@ -102,7 +107,9 @@ fn built_in_scenes_agree_with_the_cpu_in_mean_radiance_and_flip() {
         let (w, h) = (w as usize, h as usize);
         let gpu_flip = flip(&display(&cpu), &display(&gpu), w, h, DEFAULT_PPD).mean;
         let noise_flip = flip(&display(&cpu), &display(&peer), w, h, DEFAULT_PPD).mean;
-        eprintln!("{name}: FLIP GPU vs CPU {gpu_flip:.4}, CPU vs CPU (other samples) {noise_flip:.4}");
+        eprintln!(
+            "{name}: FLIP GPU vs CPU {gpu_flip:.4}, CPU vs CPU (other samples) {noise_flip:.4}"
+        );
         assert!(gpu_flip <= noise_flip, "{name}: FLIP {gpu_flip} above the noise's {noise_flip}");
     }
 }

@@ -72,5 +72,9 @@ fn the_path_tracer_is_its_files_in_order() {
         .collect();
     assert_eq!(files, gridlight::render::gpu::WGSL);
     let on_disk = std::fs::read_dir(&dir).expect("shaders/trace").count();
-    assert_eq!(on_disk, gridlight::render::gpu::WGSL_FILES.len(), "a trace file is not compiled in");
+    assert_eq!(
+        on_disk,
+        gridlight::render::gpu::WGSL_FILES.len(),
+        "a trace file is not compiled in"
+    );
 }

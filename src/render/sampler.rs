@@ -164,7 +164,11 @@ impl SampleStream {
     /// The stream of sample `index` of `pixel` in `frame` under the scene `seed`.
     #[inline(always)]
     pub fn new(seed: u64, frame: u64, pixel: u32, index: u32) -> Self {
-        Self { pixel_seed: pixel_seed(seed, frame, pixel), index_reversed: index.reverse_bits(), draw: 0 }
+        Self {
+            pixel_seed: pixel_seed(seed, frame, pixel),
+            index_reversed: index.reverse_bits(),
+            draw: 0,
+        }
     }
 
     /// The next 4-D point of this sample, every coordinate in [0, 1).

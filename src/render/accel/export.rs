@@ -111,9 +111,8 @@ pub fn export(tlas: &Tlas) -> AccelArrays {
     out.large = tlas.large.clone();
     let mut places: HashMap<*const Blas, BlasPlace> = HashMap::new();
     for inst in &tlas.instances {
-        let place = *places
-            .entry(Arc::as_ptr(&inst.blas))
-            .or_insert_with(|| out.push_blas(&inst.blas));
+        let place =
+            *places.entry(Arc::as_ptr(&inst.blas)).or_insert_with(|| out.push_blas(&inst.blas));
         let w2o = &inst.world_to_object;
         let n2w = &inst.normal_to_world;
         let mut words = Vec::with_capacity(INSTANCE_WORDS);

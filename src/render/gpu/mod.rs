@@ -126,9 +126,8 @@ impl GpuTracer {
         out.clear();
         let mut inputs: Vec<[u32; 2]> = Vec::new();
         for b in batches {
-            inputs.extend(
-                b.pixels.iter().map(|&p| [p, sampler::pixel_seed(scene.seed, b.frame, p)]),
-            );
+            inputs
+                .extend(b.pixels.iter().map(|&p| [p, sampler::pixel_seed(scene.seed, b.frame, p)]));
         }
         let count = inputs.len() as u32;
         if count == 0 {
@@ -198,4 +197,3 @@ impl GpuTracer {
         Ok(stats)
     }
 }
-

@@ -102,7 +102,8 @@ pub fn pack(scene: &RenderScene) -> PackedScene {
     let mut w = Words::default();
     let mut texels: Vec<f32> = Vec::new();
     let c = &scene.camera;
-    p.image = [state.resolution.width, state.resolution.height, state.render.spp, state.render.max_depth];
+    p.image =
+        [state.resolution.width, state.resolution.height, state.render.spp, state.render.max_depth];
     p.cam_origin = v4(c.origin, c.aperture);
     p.cam_forward = v4(c.forward, c.focus_distance);
     p.cam_right = v4(c.right, c.half_w);
