@@ -61,3 +61,29 @@ pub fn apply(
     config.renderer = RendererKind::Gpu(GpuRenderer::start(tracer)?);
     Ok(config)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    fn gpu(args: &[&str]) -> Option<GpuChoice> {
+        let cli =
+            crate::cli::Cli::try_parse_from(["gridlight", "worker"].iter().chain(args).copied())
+                .expect("valid command line");
+        match cli.command {
+            crate::cli::Command::Worker(a) => a.gpu,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn gpu_alone_means_on_and_takes_auto_and_off() {
+        assert_eq!(gpu(&[]), None);
+        assert_eq!(gpu(&["--gpu"]), Some(GpuChoice::On));
+        assert_eq!(gpu(&["--gpu=auto"]), Some(GpuChoice::Auto));
+        assert_eq!(gpu(&["--gpu=off"]), Some(GpuChoice::Off));
+        // A value needs `=`: a bare word after --gpu is not taken as one.
+        assert!(crate::cli::Cli::try_parse_from(["gridlight", "worker", "--gpu", "maybe"]).is_err());
+    }
+}
