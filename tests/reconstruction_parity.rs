@@ -17,6 +17,7 @@ use gridlight::reconstruct::synthetic::{self, SyntheticView};
 use gridlight::reconstruct::{
     CpuReconstructor, FrameInputs, Mode, ReconstructParams, Reconstructed,
 };
+use gridlight_actors::accumulation::Accumulation;
 
 const W: u32 = 96;
 const H: u32 = 72;
@@ -24,6 +25,8 @@ const H: u32 = 72;
 struct Frame {
     frame: u64,
     version: u64,
+    /// Shown frames of its version so far, as the frame assembler counts them.
+    accumulated: u32,
     radiance: Vec<Vec3>,
     mask: Vec<bool>,
     gbuffer: std::sync::Arc<GBuffer>,
@@ -42,6 +45,7 @@ fn sequence() -> Vec<Frame> {
         (6, 3, 1, 0.25),
         (7, 3, 1, 0.75),
     ];
+    let mut accumulation = Accumulation::default();
     plan.iter()
         .map(|&(frame, version, view, keep)| {
             let g = gbuffers[view].clone();
@@ -49,6 +53,7 @@ fn sequence() -> Vec<Frame> {
             Frame {
                 frame,
                 version,
+                accumulated: accumulation.add(version),
                 radiance: synthetic::noisy_radiance(&clean, 0.6, 7, frame),
                 mask: synthetic::random_mask(g.len(), keep, 7, frame),
                 gbuffer: g,
@@ -61,6 +66,7 @@ fn inputs(f: &Frame) -> FrameInputs<'_> {
     FrameInputs {
         frame: f.frame,
         state_version: f.version,
+        accumulated_frames: f.accumulated,
         radiance: &f.radiance,
         mask: &f.mask,
         gbuffer: &f.gbuffer,

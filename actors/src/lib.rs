@@ -11,8 +11,9 @@
 //!   edits, scripts, assets).
 //! - One folder per actor, the actor in its `mod.rs` and its pure partners beside it:
 //!   [`listener`], [`connection`] (+ the worker table), [`scheduler`] (+ job queue,
-//!   hand-out plan, pixel sets), [`assembler`] (+ frame table, wait heuristic,
-//!   accumulation, packed frames), [`presenter`] (+ sink, stats, edit latency),
+//!   hand-out plan, pixel sets), [`assembler`] (a frame's whole life: + frame table,
+//!   pacer, wait heuristic, the rule around edits, accumulation, packed frames),
+//!   [`presenter`] (shown frames to the sink: + sink, stats, edit latency),
 //!   [`scene_holder`], [`discovery`] (+ the announcer actor); [`supervision`] is the
 //!   restart policy they share.
 //! - Entry point: [`master::start`] → [`master::MasterHandle`].
@@ -20,6 +21,15 @@
 //! # Where messages live
 //! An actor message lives in the module of the actor that *handles* it; senders import
 //! it from there. Wire messages live in [`wire::protocol`].
+//!
+//! # The result path runs one way
+//! Scheduler → (connection → worker → connection) → assembler → presenter → sink thread.
+//! Each fact has one keeper: who holds which job, and every check of a result, the
+//! connection's session; a frame's results, its timing and the decision to show it, the
+//! assembler; the dropped counts, `Counters`; accumulation, the assembler's decision,
+//! carried with the frame. Where an answer must go back (a frame displayed, a sink
+//! place freed, jobs for credits), the request carries the address, so the actors are
+//! made in one direction ([`master`]).
 //!
 //! # The crate's face
 //! The modules that the worker side and the `gridlight` binary use are re-exported at
@@ -38,7 +48,7 @@ pub mod scheduler;
 pub mod supervision;
 pub mod wire;
 
-pub use assembler::{packed_frame, wait_heuristic};
+pub use assembler::{accumulation, packed_frame, wait_heuristic};
 pub use discovery::announcer;
 pub use presenter::{sink, stats};
 pub use scene::{asset_store, edit, script, state};

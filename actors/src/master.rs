@@ -3,11 +3,17 @@
 //! scene, watch statistics, inject faults and stop.
 //!
 //! ```text
-//! Listener ─▶ Connection* ─WorkerReady─▶ Scheduler ─FrameScheduled/JobsHandedOut─▶ Assembler
-//!                 ▲ ─ResultArrived──────────────────────────────────────────────▶ │
-//!                 └───────────JobsAssigned── Scheduler ◀─FrameDisplayed─ Presenter ◀┘ FrameProgress
-//! SceneHolder ─StateChanged─▶ Scheduler;   Presenter ─ShownFrame─▶ sink thread
+//! SceneHolder ─StateChanged─▶ Scheduler ─FrameScheduled/FrameStarted/FramesOutdated─▶ Assembler
+//! Listener ─▶ Connection* ─WorkerReady/JobAnswered─▶ Scheduler        ▲       │
+//!                  │ ─ResultArrived───────────────────────────────────┘       │ FrameShown/
+//!                  ▲ JobsAssigned (to the address in WorkerReady)              ▼ FrameSkipped
+//!   Scheduler ◀─FrameDisplayed (to the address in FrameScheduled)─ Assembler  Presenter ─▶ sink thread
 //! ```
+//!
+//! The actors are made in one direction, each from the addresses of those it sends to
+//! (presenter, assembler, scheduler, scene holder, listener: only its context is made
+//! first, so that its connections' links lead back to it, their supervisor); a reply
+//! goes to the address its request carries, as connections get their jobs.
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -16,7 +22,7 @@ use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
-use crate::assembler::Assembler;
+use crate::assembler::{Assembler, AssemblerConfig, AssemblerLinks, SetPacing};
 use crate::connection::workers::WorkerTable;
 use crate::connection::{ConnectionConfig, ConnectionLinks};
 use crate::discovery::announcer::{AnnounceConfig, Announcer};
@@ -24,7 +30,7 @@ use crate::discovery::Announcement;
 use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
 use crate::presenter::sink::FrameSink;
 use crate::presenter::stats::Counters;
-use crate::presenter::{Presenter, PresenterConfig, Report, ReportState, SetPacing, Shutdown};
+use crate::presenter::{Presenter, PresenterConfig, Report, ReportState, Shutdown};
 use crate::scene::asset_store::AssetStore;
 use crate::scene::edit::{Edit, EditError};
 use crate::scene::state::{SceneState, StateVersion};
@@ -68,10 +74,10 @@ pub struct MasterConfig {
     pub restart: RestartPolicy,
     /// Announce this master on the LAN (`discovery`); `None`: stay quiet.
     pub announce: Option<AnnounceConfig>,
-    /// Frames the display hands to the sink ahead of it (1 for the least latency, 2 to
+    /// Frames the assembler hands to the sink ahead of it (1 for the least latency, 2 to
     /// keep a fast sink busy: [`crate::presenter::DEFAULT_SINK_IN_FLIGHT`]).
     pub sink_in_flight: usize,
-    /// A state change discards the queued jobs of older versions and the display does
+    /// A state change discards the queued jobs of older versions and the assembler does
     /// not wait for their held ones (default); `false` only to measure what that gains.
     pub discard_stale_jobs: bool,
 }
@@ -232,8 +238,7 @@ struct Actors {
     presenter: Addr<Presenter>,
 }
 
-/// Creates every actor inside the running system. Contexts are made first so that the
-/// cyclic links (display ⇄ assembler, display → scheduler → assembler) can be wired.
+/// Creates every actor inside the running system, each after those it sends to.
 #[allow(clippy::too_many_arguments)]
 fn wire(
     config: MasterConfig,
@@ -250,53 +255,44 @@ fn wire(
     let state = Arc::new(state);
     let threshold = config.queue_threshold.unwrap_or(2 * config.sets.sets as usize);
 
-    let presenter_ctx = Context::<Presenter>::new();
-    let assembler_ctx = Context::<Assembler>::new();
-    let scheduler_ctx = Context::<Scheduler>::new();
-    let (presenter, assembler, scheduler) =
-        (presenter_ctx.address(), assembler_ctx.address(), scheduler_ctx.address());
-
     let presenter_config = PresenterConfig {
-        pacing: config.pacing,
-        initial_frame_time: config.initial_frame_time,
         max_frames: config.max_frames,
         policy: config.restart,
         sink_in_flight: config.sink_in_flight,
     };
-    presenter_ctx.run(Presenter::new(
-        presenter_config,
-        sink,
-        assembler.clone().recipient(),
-        scheduler.clone().recipient(),
-        counters.clone(),
-        workers.clone(),
-        report,
-    ));
-    assembler_ctx.run(Assembler::new(
-        sets.clone(),
-        presenter.clone().recipient(),
-        counters.clone(),
-        workers.clone(),
-        config.restart,
-    ));
+    let presenter =
+        Presenter::new(presenter_config, sink, counters.clone(), workers.clone(), report).start();
+    let assembler_config = AssemblerConfig {
+        pacing: config.pacing,
+        initial_frame_time: config.initial_frame_time,
+        sink_in_flight: config.sink_in_flight,
+        policy: config.restart,
+    };
+    let links = AssemblerLinks {
+        shown_to: presenter.clone().recipient(),
+        skipped_to: presenter.clone().recipient(),
+        prepare_to: presenter.clone().recipient(),
+    };
+    let assembler =
+        Assembler::new(sets.clone(), assembler_config, links, counters.clone(), workers.clone())
+            .start();
     let links = SchedulerLinks {
         frames_to: assembler.clone().recipient(),
-        handouts_to: assembler.clone().recipient(),
-        abandoned_to: presenter.clone().recipient(),
-        outdated_to: presenter.clone().recipient(),
+        started_to: assembler.clone().recipient(),
+        abandoned_to: assembler.clone().recipient(),
+        outdated_to: assembler.clone().recipient(),
     };
-    scheduler_ctx.run(
-        Scheduler::new(
-            config.sets.sets,
-            threshold,
-            state.clone(),
-            config.pacing,
-            links,
-            counters.clone(),
-            config.restart,
-        )
-        .with_stale_discard(config.discard_stale_jobs),
-    );
+    let scheduler = Scheduler::new(
+        config.sets.sets,
+        threshold,
+        state.clone(),
+        config.pacing,
+        links,
+        counters.clone(),
+        config.restart,
+    )
+    .with_stale_discard(config.discard_stale_jobs)
+    .start();
     let scene =
         SceneHolder::new(state, scheduler.clone().recipient(), counters.clone(), config.restart)
             .start();
@@ -338,7 +334,7 @@ impl MasterHandle {
     /// Changes the pacing (wait heuristic bounds or frame rate) from now on; a bad value
     /// is refused with the reason and the pacing stays as it was.
     pub fn set_pacing(&self, pacing: Pacing) -> Result<(), MasterError> {
-        block_on(self.presenter.send(SetPacing(pacing)))??;
+        block_on(self.assembler.send(SetPacing(pacing)))??;
         self.scheduler.do_send(PacingChanged(pacing));
         Ok(())
     }

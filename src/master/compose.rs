@@ -89,8 +89,6 @@ pub struct Composer {
     reconstructor: Option<Reconstructor>,
     /// The shown frame's radiance divided by the G-buffer albedo (reused between frames).
     demodulated: Vec<Vec3>,
-    /// The last composed frame's state version.
-    last_version: Option<StateVersion>,
     /// The G-buffer of the state being accumulated, its emission as pixel area means.
     converging: Option<(StateVersion, Arc<GBuffer>)>,
 }
@@ -114,7 +112,6 @@ impl Composer {
             backend,
             reconstructor: None,
             demodulated: Vec::new(),
-            last_version: None,
             converging: None,
         })
     }
@@ -143,7 +140,8 @@ impl Composer {
                 None => source.get(&frame.state)?,
             }
         };
-        let g = self.for_accumulation(g, frame.state.version);
+        let accumulated = frame.stats.accumulated_frames;
+        let g = self.for_accumulation(g, frame.state.version, accumulated);
         let mut timings = ComposeTimings { gbuffer_ms: ms(started), ..Default::default() };
         let reconstructing = Instant::now();
         if frame.current.len() != g.albedo.len() {
@@ -157,6 +155,7 @@ impl Composer {
         let inputs = FrameInputs {
             frame: frame.frame,
             state_version: frame.state.version,
+            accumulated_frames: accumulated,
             radiance: &self.demodulated,
             mask: &frame.current_mask,
             gbuffer: &g,
@@ -228,9 +227,13 @@ impl Composer {
     /// G-buffer with each pixel's directly seen emission averaged over its area
     /// (`gbuffer::emission`), made once per state; the first frame of a state (while
     /// interacting) keeps the centre's, which costs nothing extra.
-    fn for_accumulation(&mut self, g: Arc<GBuffer>, version: StateVersion) -> Arc<GBuffer> {
-        let accumulating = self.last_version.replace(version) == Some(version);
-        if !accumulating {
+    fn for_accumulation(
+        &mut self,
+        g: Arc<GBuffer>,
+        version: StateVersion,
+        accumulated_frames: u32,
+    ) -> Arc<GBuffer> {
+        if accumulated_frames <= 1 {
             return g;
         }
         if let Some((v, converging)) = &self.converging {
@@ -312,8 +315,10 @@ mod tests {
         let g = c.gbuffers.write().unwrap().get(&state).unwrap();
         let mut f = frame(&state, |_| true);
         f.current = (0..g.len()).map(|i| Vec3::new(0.1, 0.2, 0.3) * (1 + i % 7) as f32).collect();
+        f.stats.accumulated_frames = 1;
         c.compose(&f, View::Final).unwrap(); // the first frame of a state is filtered
         f.frame = 2;
+        f.stats.accumulated_frames = 2; // as the frame assembler decides it
         let out = c.compose(&f, View::Final).unwrap().linear.unwrap();
         // Accumulating: the emission is the pixel-area mean (`gbuffer::emission`).
         let area = Arc::clone(&c.converging.as_ref().expect("an accumulating G-buffer").1);

@@ -9,7 +9,7 @@
 use bytemuck::Zeroable;
 use glam::Vec4;
 
-use super::history::{Accumulation, HistoryRing};
+use super::history::HistoryRing;
 use super::pass::{self, FillInputs, Outputs, PassConsts, PastFrame};
 use super::planes::{GuidePlanes, Layout, Planes3};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
@@ -30,7 +30,6 @@ pub struct CpuReconstructor {
     height: u32,
     params: ReconstructParams,
     layout: Layout,
-    accumulation: Accumulation,
     /// rgb: sum of samples since the last state change; w: their number.
     accum: Vec<Vec4>,
     ring: HistoryRing,
@@ -62,7 +61,6 @@ impl CpuReconstructor {
             height,
             params,
             layout,
-            accumulation: Accumulation::default(),
             accum: vec![Vec4::ZERO; n],
             ring,
             past,
@@ -103,7 +101,8 @@ impl CpuReconstructor {
         let g = inputs.gbuffer;
         let c = PassConsts::new(self.width, self.height, &self.params, g.scene_scale);
         let layout = &self.layout;
-        let (reset, mode) = self.accumulation.begin(inputs.state_version);
+        let mode = Mode::of(inputs.accumulated_frames);
+        let reset = mode == Mode::Interacting;
 
         self.guide.split(&g.normal, &g.position, layout);
         pass::accumulate(reset, inputs.radiance, inputs.mask, &mut self.accum, self.width);
@@ -165,6 +164,7 @@ mod tests {
         let inputs = |frame: u64| FrameInputs {
             frame,
             state_version: frame / 2,
+            accumulated_frames: frame as u32 % 2 + 1,
             radiance: &radiance,
             mask: &masks[frame as usize],
             gbuffer: &g,

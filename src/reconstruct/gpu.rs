@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::history::{Accumulation, HistoryRing};
+use super::history::HistoryRing;
 use super::params::MAX_HISTORY;
 use super::pass::remodulate::DISPLAY;
 use super::pass::{self, PassConsts, Uniforms};
@@ -218,7 +218,6 @@ pub struct GpuReconstructor {
     width: u32,
     height: u32,
     params: ReconstructParams,
-    accumulation: Accumulation,
     ring: HistoryRing,
     /// Ping-pong parity of the running sums.
     parity: usize,
@@ -261,7 +260,6 @@ impl GpuReconstructor {
             width,
             height,
             params,
-            accumulation: Accumulation::default(),
             ring: HistoryRing::new(params.history),
             parity: 0,
             gbuffer_version: None,
@@ -291,7 +289,6 @@ impl GpuReconstructor {
         self.groups = BindGroups::new(device, &self.passes, &self.textures, &self.uniforms);
         self.staging = Self::stagings(device, width, height);
         (self.width, self.height) = (width, height);
-        self.accumulation = Accumulation::default();
         self.ring = HistoryRing::new(self.params.history);
         self.gbuffer_version = None;
     }
@@ -310,7 +307,8 @@ impl GpuReconstructor {
         inputs.validate(self.width, self.height)?;
         let g = inputs.gbuffer;
         let c = PassConsts::new(self.width, self.height, &self.params, g.scene_scale);
-        let (reset, mode) = self.accumulation.begin(inputs.state_version);
+        let mode = Mode::of(inputs.accumulated_frames);
+        let reset = mode == Mode::Interacting;
         let weights = self.ring.weights(inputs.frame);
         let uniforms = Uniforms::new(&c, reset, weights);
         self.ctx.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));

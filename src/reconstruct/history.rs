@@ -1,14 +1,13 @@
-//! Bookkeeping of the temporal filter's previous frames and of accumulation.
+//! Bookkeeping of the temporal filter's previous frames.
 //!
-//! Pure logic shared by the CPU and GPU reconstructors: which ring slot holds which frame,
-//! the weights w = 1/(F_i − F_j), and when accumulation restarts. The pixel data lives with
-//! each implementation (vectors on the CPU, texture-array layers on the GPU).
+//! Pure logic shared by the CPU and GPU reconstructors: which ring slot holds which frame
+//! and the weights w = 1/(F_i − F_j). The pixel data lives with each implementation
+//! (vectors on the CPU, texture-array layers on the GPU). When accumulation restarts is
+//! not decided here: it comes with each frame (`FrameInputs::accumulated_frames`).
 
 use gridlight_actors::protocol::FrameNo;
-use gridlight_actors::state::StateVersion;
 
 use super::params::MAX_HISTORY;
-use super::Mode;
 
 /// Which frame each history slot holds; slots are reused oldest first.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -55,29 +54,6 @@ impl HistoryRing {
     }
 }
 
-/// Tracks the run of frames with an unchanged scene state (progressive refinement).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Accumulation {
-    version: Option<StateVersion>,
-    frames: u32,
-}
-
-impl Accumulation {
-    /// Starts a frame of `version`: returns whether the running average must restart and
-    /// the mode the frame is reconstructed in. The first frame of a new state is
-    /// `Interacting` (filters on); later frames of the same state accumulate (filters off).
-    pub fn begin(&mut self, version: StateVersion) -> (bool, Mode) {
-        if self.version == Some(version) {
-            self.frames += 1;
-            (false, Mode::Accumulating { frames: self.frames })
-        } else {
-            self.version = Some(version);
-            self.frames = 1;
-            (true, Mode::Interacting)
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -92,14 +68,5 @@ mod tests {
         assert_eq!(ring.push(7), Some(0), "the oldest slot is reused");
         assert_eq!(ring.weights(8), [1.0, 0.25, 0.0, 0.0]);
         assert_eq!(HistoryRing::new(0).push(1), None);
-    }
-
-    #[test]
-    fn accumulation_restarts_on_a_new_state() {
-        let mut acc = Accumulation::default();
-        assert_eq!(acc.begin(1), (true, Mode::Interacting));
-        assert_eq!(acc.begin(1), (false, Mode::Accumulating { frames: 2 }));
-        assert_eq!(acc.begin(1), (false, Mode::Accumulating { frames: 3 }));
-        assert_eq!(acc.begin(2), (true, Mode::Interacting));
     }
 }

@@ -8,8 +8,9 @@
 //! [`CpuReconstructor`] (the multithreaded reference, `cpu.rs`) and [`GpuReconstructor`]
 //! (`gpu.rs`, on the device plumbing of `crate::gpu`); [`Reconstructor`] picks one.
 //! The CPU kernels' support is `planes.rs` (bordered planes), `simd.rs` (vectors and ISA
-//! dispatch) and `discontinuity.rs` (D); `history.rs` is the bookkeeping both pipelines
-//! share.
+//! dispatch) and `discontinuity.rs` (D); `history.rs` is the temporal history both
+//! pipelines share. Whether a frame accumulates is not decided here: it comes with the
+//! frame (`FrameInputs::accumulated_frames`).
 
 use glam::Vec3;
 use gridlight_actors::protocol::FrameNo;
@@ -53,8 +54,12 @@ pub enum ReconstructError {
 #[derive(Clone, Copy, Debug)]
 pub struct FrameInputs<'a> {
     pub frame: FrameNo,
-    /// Version of the scene state the frame was rendered with; a change restarts accumulation.
+    /// Version of the scene state the frame was rendered with (the G-buffer it goes with).
     pub state_version: StateVersion,
+    /// Shown frames of this scene state, this one included: 1 restarts the running
+    /// average (filters on), more accumulate ([`Mode::of`]). Decided once, by the frame
+    /// assembler (`gridlight_actors::accumulation`), never by the reconstruction.
+    pub accumulated_frames: u32,
     /// Demodulated radiance of this frame's results, one per pixel (ignored where `mask` is false).
     pub radiance: &'a [Vec3],
     /// Whether this frame has a result for the pixel.
@@ -99,6 +104,16 @@ pub enum Mode {
     Interacting,
     /// The state is unchanged since `frames` frames: their average, filled, no filters.
     Accumulating { frames: u32 },
+}
+
+impl Mode {
+    /// The mode of a frame that is the `accumulated_frames`-th shown with its scene state.
+    pub fn of(accumulated_frames: u32) -> Self {
+        match accumulated_frames {
+            0 | 1 => Mode::Interacting,
+            frames => Mode::Accumulating { frames },
+        }
+    }
 }
 
 /// One reconstructed frame.
@@ -173,8 +188,14 @@ mod tests {
         let mut mask = vec![true; n];
         mask[5] = false;
         let check = |radiance: &[Vec3]| {
-            let inputs =
-                FrameInputs { frame: 1, state_version: 1, radiance, mask: &mask, gbuffer: &g };
+            let inputs = FrameInputs {
+                frame: 1,
+                state_version: 1,
+                accumulated_frames: 1,
+                radiance,
+                mask: &mask,
+                gbuffer: &g,
+            };
             inputs.validate(w, h)
         };
         // A bad value without a result does not count; the first bad one with a result

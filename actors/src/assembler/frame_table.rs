@@ -1,41 +1,36 @@
 //! Frames in flight (paper §4.1): pure logic behind the frame assembler actor.
 //!
-//! A result is accepted only for a frame not yet displayed and a (frame, set) that was
-//! handed out to that very connection and not yet answered; everything else is dropped
-//! and counted as late (its frame was displayed), duplicate (already answered) or
-//! unknown (never handed to that connection, or a frame never scheduled). Accepted
+//! A frame is opened when the scheduler queues it, marked started at its first hand-out
+//! and taken out when it is displayed (shown or skipped); it and every earlier frame
+//! count as displayed from then on. The results that reach the table were already
+//! checked by the connection that received them (`connection::session`: set range, the
+//! job it answers, its state version, its pixel count, answered once): the table only
+//! judges time. A result for a displayed frame is late; one for a frame the table does
+//! not hold (lost in a restart of the assembler) is unknown; a second result for one set
+//! means the set was handed out twice, which the scheduler must never do. Accepted
 //! radiance is kept packed, as it arrived ([`PackedFrame`]): accepting costs no pixel
 //! work, and only shown frames are ever unpacked.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
+use std::time::Instant;
 
 use crate::assembler::packed_frame::PackedFrame;
 use crate::scene::state::{SceneState, StateVersion};
 use crate::scheduler::sets::SetTable;
-use crate::wire::protocol::{FrameNo, PackedRadiance, SetNo};
-
-use crate::wire::protocol::ConnId;
+use crate::wire::protocol::{ConnId, FrameNo, PackedRadiance, SetNo};
 
 /// What happened to one result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Admission {
-    /// Scattered into the frame; `back` results of `total` are in.
-    Accepted {
-        back: u32,
-        total: u32,
-    },
+    /// Kept in the frame; `back` results of `total` are in.
+    Accepted { back: u32, total: u32 },
+    /// Its frame was displayed.
     Late,
-    Duplicate,
+    /// Its frame is not in the table (lost when the assembler restarted).
     Unknown,
-}
-
-/// Counts of dropped results.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Dropped {
-    pub late: u64,
-    pub duplicate: u64,
-    pub unknown: u64,
+    /// Its set already has a result from another connection: the set was handed out twice.
+    HandedTwice,
 }
 
 /// A frame taken out of the table for display.
@@ -51,13 +46,29 @@ pub struct ClosedFrame {
     pub total: u32,
 }
 
+/// How far an open frame is, for the wait heuristic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    pub version: StateVersion,
+    pub back: u32,
+    pub total: u32,
+    /// When the scheduler queued it.
+    pub scheduled_at: Instant,
+    /// Its first hand-out: the start of its computation (paper §4.3).
+    pub started_at: Option<Instant>,
+}
+
 #[derive(Debug)]
 struct OpenFrame {
     state: Arc<SceneState>,
-    /// Connection each set was handed to.
-    holder: Vec<Option<ConnId>>,
+    scheduled_at: Instant,
+    started_at: Option<Instant>,
+    /// Lost in a restart of the assembler: it accepts nothing and is skipped.
+    lost: bool,
     back: u32,
     results: PackedFrame,
+    /// Per set, the connection whose result was accepted.
+    owners: Vec<Option<ConnId>>,
 }
 
 /// The frames scheduled and not yet displayed.
@@ -67,91 +78,82 @@ pub struct FrameTable {
     frames: BTreeMap<FrameNo, OpenFrame>,
     /// Frames up to and including this one were displayed.
     closed_upto: Option<FrameNo>,
-    dropped: Dropped,
 }
 
 impl FrameTable {
     pub fn new(sets: Arc<SetTable>) -> Self {
-        Self { sets, frames: BTreeMap::new(), closed_upto: None, dropped: Dropped::default() }
+        Self { sets, frames: BTreeMap::new(), closed_upto: None }
     }
 
-    /// A fresh table that still refuses frames displayed before (used on restart).
+    /// The table after a restart: it still refuses frames displayed before, and the
+    /// frames in flight keep their place and time but lose their results and accept
+    /// none (their jobs' results count as unknown; the frames are skipped in turn).
     pub fn restarted(&self) -> Self {
-        Self {
-            closed_upto: self.closed_upto,
-            dropped: self.dropped,
-            ..Self::new(self.sets.clone())
-        }
+        let frames = self
+            .frames
+            .iter()
+            .map(|(f, o)| {
+                let lost = OpenFrame {
+                    state: o.state.clone(),
+                    scheduled_at: o.scheduled_at,
+                    started_at: o.started_at,
+                    lost: true,
+                    back: 0,
+                    results: PackedFrame::new(self.sets.clone()),
+                    owners: vec![None; self.sets.sets() as usize],
+                };
+                (*f, lost)
+            })
+            .collect();
+        Self { sets: self.sets.clone(), frames, closed_upto: self.closed_upto }
     }
 
-    /// The scheduler queued all sets of `frame` with `state`.
-    pub fn open(&mut self, frame: FrameNo, state: Arc<SceneState>) {
+    /// The scheduler queued `frame` with `state` at `now`.
+    pub fn open(&mut self, frame: FrameNo, state: Arc<SceneState>, now: Instant) {
         if self.is_closed(frame) {
             return;
         }
         let s = self.sets.sets() as usize;
         self.frames.entry(frame).or_insert(OpenFrame {
             state,
-            holder: vec![None; s],
+            scheduled_at: now,
+            started_at: None,
+            lost: false,
             back: 0,
             results: PackedFrame::new(self.sets.clone()),
+            owners: vec![None; s],
         });
     }
 
-    /// The scheduler handed `(frame, set)` to `conn`. True when that set of that frame
-    /// had already been handed out: a job done twice, which the scheduler must never do
-    /// (no redundancy: at most S jobs per frame).
-    pub fn handed_out(&mut self, frame: FrameNo, set: SetNo, conn: ConnId) -> bool {
-        match self.frames.get_mut(&frame).and_then(|s| s.holder.get_mut(set as usize)) {
-            Some(h) => h.replace(conn).is_some(),
-            None => false,
+    /// The first job of `frame` was handed out at `now`.
+    pub fn start(&mut self, frame: FrameNo, now: Instant) {
+        if let Some(f) = self.frames.get_mut(&frame) {
+            f.started_at.get_or_insert(now);
         }
     }
 
-    /// Judges one result and, when accepted, keeps its radiance.
+    /// Judges one result in time and, when accepted, keeps its radiance.
     pub fn accept(
         &mut self,
         conn: ConnId,
         frame: FrameNo,
         set: SetNo,
-        version: StateVersion,
-        radiance: PackedRadiance,
-    ) -> Admission {
-        let admission = self.judge(conn, frame, set, version, radiance);
-        match admission {
-            Admission::Late => self.dropped.late += 1,
-            Admission::Duplicate => self.dropped.duplicate += 1,
-            Admission::Unknown => self.dropped.unknown += 1,
-            Admission::Accepted { .. } => {}
-        }
-        admission
-    }
-
-    fn judge(
-        &mut self,
-        conn: ConnId,
-        frame: FrameNo,
-        set: SetNo,
-        version: StateVersion,
         radiance: PackedRadiance,
     ) -> Admission {
         if self.is_closed(frame) {
             return Admission::Late;
         }
-        if self.sets.pixels(set).is_none_or(|p| p.len() != radiance.len()) {
+        let Some(open) = self.frames.get_mut(&frame).filter(|f| !f.lost) else {
             return Admission::Unknown;
+        };
+        if open.results.contains(set) {
+            return Admission::HandedTwice;
         }
-        let Some(slot) = self.frames.get_mut(&frame) else { return Admission::Unknown };
-        if slot.holder[set as usize] != Some(conn) || slot.state.version != version {
-            return Admission::Unknown;
-        }
-        if slot.results.contains(set) {
-            return Admission::Duplicate;
-        }
-        slot.back += 1;
+        open.back += 1;
         let PackedRadiance::Rgb9e5(words) = radiance;
-        slot.results.insert(set, words);
-        Admission::Accepted { back: slot.back, total: slot.holder.len() as u32 }
+        open.results.insert(set, words);
+        open.owners[set as usize] = Some(conn);
+        Admission::Accepted { back: open.back, total: open.owners.len() as u32 }
     }
 
     /// Takes `frame` out for display; it and every earlier frame count as displayed
@@ -163,37 +165,34 @@ impl FrameTable {
         self.closed_upto = Some(frame);
         // Earlier frames still open were passed over: they are displayed too.
         self.frames.retain(|f, _| *f >= frame);
-        let slot = self.frames.remove(&frame)?;
-        let owners = (0..slot.holder.len())
-            .map(|s| slot.holder[s].filter(|_| slot.results.contains(s as SetNo)))
-            .collect();
+        let open = self.frames.remove(&frame)?;
         Some(ClosedFrame {
             frame,
-            state: slot.state,
-            results: slot.results,
-            owners,
-            back: slot.back,
-            total: slot.holder.len() as u32,
+            state: open.state,
+            results: open.results,
+            total: open.owners.len() as u32,
+            owners: open.owners,
+            back: open.back,
         })
     }
 
-    /// Whether any set of an open frame was handed out: its computation has started.
-    pub fn started(&self, frame: FrameNo) -> bool {
-        self.frames.get(&frame).is_some_and(|s| s.holder.iter().any(Option::is_some))
+    /// The oldest frame not yet displayed and how far it is.
+    pub fn oldest(&self) -> Option<(FrameNo, Progress)> {
+        self.frames.iter().next().map(|(f, o)| {
+            let progress = Progress {
+                version: o.state.version,
+                back: o.back,
+                total: o.owners.len() as u32,
+                scheduled_at: o.scheduled_at,
+                started_at: o.started_at,
+            };
+            (*f, progress)
+        })
     }
 
-    /// The state version of an open frame.
-    pub fn version(&self, frame: FrameNo) -> Option<StateVersion> {
-        self.frames.get(&frame).map(|s| s.state.version)
-    }
-
-    /// Jobs back and total of an open frame.
-    pub fn progress(&self, frame: FrameNo) -> Option<(u32, u32)> {
-        self.frames.get(&frame).map(|s| (s.back, s.holder.len() as u32))
-    }
-
-    pub fn dropped(&self) -> Dropped {
-        self.dropped
+    /// Whether a frame after `frame` has results.
+    pub fn later_has_results(&self, frame: FrameNo) -> bool {
+        self.frames.range(frame + 1..).any(|(_, o)| o.back > 0)
     }
 
     /// Frames currently in flight.
@@ -211,7 +210,7 @@ mod tests {
     use super::*;
     use crate::scene::state::Resolution;
     use crate::scheduler::job_queue::tests::state;
-    use crate::wire::packing::{encode_rgb9e5, pack};
+    use crate::wire::packing::pack;
     use crate::wire::protocol::{Partition, SetsConfig};
     use glam::Vec3;
 
@@ -229,15 +228,15 @@ mod tests {
     }
 
     #[test]
-    fn accepts_a_handed_out_set_once() {
+    fn keeps_each_accepted_set_with_the_connection_that_sent_it() {
         let mut t = table();
-        t.open(0, state(3));
-        assert!(!t.handed_out(0, 1, 7));
-        assert!(!t.handed_out(0, 2, 7), "another set of the same frame is no re-hand-out");
-        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Admission::Accepted { back: 1, total: 4 });
-        assert_eq!(t.accept(7, 0, 1, 3, radiance(2.0)), Admission::Duplicate);
+        let now = Instant::now();
+        t.open(0, state(3), now);
+        assert_eq!(t.accept(7, 0, 1, radiance(2.0)), Admission::Accepted { back: 1, total: 4 });
+        assert_eq!(t.oldest().map(|(f, p)| (f, p.back, p.total, p.version)), Some((0, 1, 4, 3)));
         let closed = t.close(0).expect("open frame");
-        assert_eq!(closed.back, 1);
+        assert_eq!((closed.back, closed.total), (1, 4));
+        assert_eq!(closed.owners, [None, Some(7), None, None]);
         let (radiance, mask) = closed.results.unpack();
         let covered: Vec<usize> = (0..64).filter(|p| mask[*p]).collect();
         assert_eq!(
@@ -245,62 +244,60 @@ mod tests {
             t.sets.pixels(1).unwrap().iter().map(|p| *p as usize).collect::<Vec<_>>()
         );
         assert!(covered.iter().all(|p| radiance[*p] == Vec3::splat(2.0)));
-        assert_eq!(t.dropped(), Dropped { late: 0, duplicate: 1, unknown: 0 });
     }
 
     #[test]
-    fn a_second_hand_out_of_one_set_is_reported() {
+    fn a_second_result_for_one_set_means_it_was_handed_out_twice() {
         let mut t = table();
-        t.open(0, state(3));
-        assert!(!t.started(0));
-        assert!(!t.handed_out(0, 1, 7));
-        assert!(t.started(0) && t.version(0) == Some(3));
-        assert!(t.handed_out(0, 1, 8), "a job handed out twice went unnoticed");
-        assert!(!t.handed_out(9, 1, 7), "a frame not in the table cannot be judged");
+        t.open(0, state(3), Instant::now());
+        t.accept(7, 0, 1, radiance(2.0));
+        assert_eq!(t.accept(8, 0, 1, radiance(3.0)), Admission::HandedTwice);
+        assert_eq!(t.close(0).expect("open").owners[1], Some(7), "the first result stays");
     }
 
     #[test]
-    fn results_not_handed_to_that_connection_are_unknown() {
+    fn a_frame_starts_at_its_first_hand_out() {
         let mut t = table();
-        t.open(0, state(3));
-        t.handed_out(0, 1, 7);
-        assert_eq!(t.accept(8, 0, 1, 3, radiance(1.0)), Admission::Unknown, "other connection");
-        assert_eq!(t.accept(7, 0, 2, 3, radiance(1.0)), Admission::Unknown, "set not handed out");
-        assert_eq!(t.accept(7, 0, 1, 4, radiance(1.0)), Admission::Unknown, "wrong version");
-        assert_eq!(t.accept(7, 5, 1, 3, radiance(1.0)), Admission::Unknown, "frame never opened");
-        assert_eq!(t.accept(7, 0, 9, 3, radiance(1.0)), Admission::Unknown, "no such set");
-        let short = PackedRadiance::Rgb9e5(vec![encode_rgb9e5(Vec3::ONE); 3]);
-        assert_eq!(t.accept(7, 0, 1, 3, short.clone()), Admission::Unknown, "wrong pixel count");
-        assert_eq!(t.dropped().unknown, 6);
-        assert_eq!(t.progress(0), Some((0, 4)));
+        let (t0, t1) = (Instant::now(), Instant::now() + std::time::Duration::from_millis(5));
+        t.open(0, state(1), t0);
+        assert_eq!(t.oldest().map(|(_, p)| p.started_at), Some(None));
+        t.start(0, t1);
+        t.start(0, t1 + std::time::Duration::from_millis(5));
+        assert_eq!(t.oldest().map(|(_, p)| (p.scheduled_at, p.started_at)), Some((t0, Some(t1))));
     }
 
     #[test]
     fn results_for_displayed_frames_are_late_and_never_reach_an_image() {
         let mut t = table();
-        t.open(0, state(1));
-        t.open(1, state(1));
-        t.handed_out(0, 0, 1);
-        t.handed_out(1, 0, 1);
+        let now = Instant::now();
+        t.open(0, state(1), now);
+        t.open(1, state(1), now);
+        t.open(2, state(1), now);
+        assert_eq!(t.accept(1, 2, 0, radiance(1.0)), Admission::Accepted { back: 1, total: 4 });
+        assert!(t.later_has_results(1) && !t.later_has_results(2));
         let closed = t.close(1).expect("frame 1");
         assert!(closed.results.unpack().1.iter().all(|m| !m));
-        assert_eq!(t.accept(1, 0, 0, 1, radiance(1.0)), Admission::Late, "passed-over frame");
-        assert_eq!(t.accept(1, 1, 0, 1, radiance(1.0)), Admission::Late);
+        assert_eq!(t.accept(1, 0, 0, radiance(1.0)), Admission::Late, "passed-over frame");
+        assert_eq!(t.accept(1, 1, 0, radiance(1.0)), Admission::Late);
         assert!(t.close(0).is_none() && t.close(1).is_none());
-        t.open(1, state(1));
-        assert_eq!(t.open_frames(), 0, "a displayed frame was reopened");
-        assert_eq!(t.dropped().late, 2);
+        t.open(1, state(1), now);
+        assert_eq!(t.open_frames(), 1, "a displayed frame was reopened");
+        assert_eq!(t.accept(1, 5, 0, radiance(1.0)), Admission::Unknown, "never opened");
     }
 
     #[test]
-    fn restart_keeps_the_displayed_boundary() {
+    fn a_restart_keeps_the_displayed_boundary_and_loses_the_frames_in_flight() {
         let mut t = table();
-        t.open(3, state(1));
+        let now = Instant::now();
+        t.open(3, state(1), now);
+        t.open(4, state(1), now);
+        t.accept(1, 4, 0, radiance(1.0));
         t.close(3);
         let mut r = t.restarted();
-        r.open(2, state(1));
-        assert_eq!(r.open_frames(), 0);
-        r.open(4, state(1));
-        assert_eq!(r.progress(4), Some((0, 4)));
+        r.open(2, state(1), now);
+        assert_eq!(r.oldest().map(|(f, p)| (f, p.back)), Some((4, 0)), "frame 4 kept, empty");
+        assert_eq!(r.accept(1, 4, 1, radiance(1.0)), Admission::Unknown, "lost frames take none");
+        r.open(5, state(1), now);
+        assert_eq!(r.accept(1, 5, 1, radiance(1.0)), Admission::Accepted { back: 1, total: 4 });
     }
 }

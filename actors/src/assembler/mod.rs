@@ -1,48 +1,60 @@
-//! The frame assembler actor: frames in flight and the results that fill them (§4.1).
+//! The frame assembler actor: a frame's whole life, from its scheduling to its display
+//! (paper §4.1, §4.3).
 //!
-//! It accepts a result only for a frame not yet displayed and a (frame, set) handed out
-//! to that connection and not yet answered; everything else is dropped and counted.
-//! It reports each frame's progress (Q_t's numerator) to the display: when it is scheduled,
-//! when its first job is handed out (the start of the frame's computation, from which the
-//! paper's heuristic measures its time) and with every result; and hands a frame over,
-//! once, when the display closes it.
+//! It keeps the frames in flight and the results that fill them ([`FrameTable`]), decides
+//! when the oldest is shown or skipped ([`Pacer`]: the wait heuristic, its deadlines and
+//! the rule around edits) and, once it is, pushes it one way to the presenter
+//! ([`FrameShown`], [`FrameSkipped`]) and tells the scheduler ([`FrameDisplayed`]). Results
+//! come from connections already checked there; here they are judged only by time
+//! (late, or for a frame lost in a restart). The sink's back-pressure is a count of the
+//! frames handed over and not yet freed ([`SinkFreed`]): no frame is decided while the
+//! sink holds its most.
 
-pub mod accumulate;
+pub mod accumulation;
 pub mod frame_table;
+pub mod new_view;
+pub mod pacer;
 pub mod packed_frame;
 pub mod wait_heuristic;
 
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
-use crate::assembler::frame_table::{Admission, ClosedFrame, FrameTable};
+use crate::assembler::accumulation::Accumulation;
+use crate::assembler::frame_table::{Admission, FrameTable};
+use crate::assembler::pacer::{Judgement, Pacer};
+use crate::assembler::wait_heuristic::{Decision, Pacing, PacingError};
 use crate::connection::workers::WorkerTable;
 use crate::presenter::stats::Counters;
-use crate::presenter::FrameProgress;
+use crate::presenter::{FrameShown, FrameSkipped, PrepareState};
 use crate::scene::state::SceneState;
 use crate::scheduler::sets::SetTable;
+use crate::scheduler::FrameDisplayed;
 use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
-use crate::wire::protocol::ConnId;
-use crate::wire::protocol::{FrameNo, JobResult, SetNo};
+use crate::wire::protocol::{ConnId, FrameNo, JobResult};
 
-/// To the assembler: these (frame, set) pairs were handed to `conn`.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct JobsHandedOut {
-    pub conn: ConnId,
-    pub jobs: Vec<(FrameNo, SetNo)>,
-}
-
-/// To the assembler: all sets of `frame` were queued with `state`.
+/// To the assembler: all sets of `frame` were queued with `state`. `displayed_to` is where
+/// its display is told (the scheduler's own address: replies travel with the request, so
+/// the actors are wired in one direction).
 #[derive(Message, Clone)]
 #[rtype(result = "()")]
 pub struct FrameScheduled {
     pub frame: FrameNo,
     pub state: Arc<SceneState>,
+    pub displayed_to: Recipient<FrameDisplayed>,
 }
 
-/// A connection received a well-formed result (pixel count already checked).
+/// To the assembler: the first job of `frame` was handed out (the start of its
+/// computation, from which the wait heuristic measures its time).
+#[derive(Message, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct FrameStarted {
+    pub frame: FrameNo,
+}
+
+/// A connection received the answer to a job it holds, checked by its session.
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct ResultArrived {
@@ -50,17 +62,69 @@ pub struct ResultArrived {
     pub result: JobResult,
 }
 
-/// The display takes `frame` out; it and earlier frames are displayed from now on.
-#[derive(Message)]
-#[rtype(result = "Option<ClosedFrame>")]
-pub struct CloseFrame {
-    pub frame: FrameNo,
+/// To the assembler: frames before `before` were made with an outdated scene state; their
+/// queued jobs were discarded, so only results already held by workers can still come.
+/// Such a frame is shown at once with what it has (or skipped when empty) instead of
+/// waiting for them ([`new_view`]).
+#[derive(Message, Debug, Clone)]
+#[rtype(result = "()")]
+pub struct FramesOutdated {
+    pub before: FrameNo,
+    /// The new state, which the frames from `before` on have.
+    pub state: Arc<SceneState>,
 }
 
-/// The frame table and where progress goes.
+/// To the assembler: frames before `before` lost their queued jobs (the scheduler
+/// restarted) and will get no results beyond those already handed out. Waiting for them
+/// says nothing about the workers' speed, so they are decided at once.
+#[derive(Message, Debug, Clone, Copy)]
+#[rtype(result = "()")]
+pub struct FramesAbandoned {
+    pub before: FrameNo,
+}
+
+/// Changes how frames are paced from now on (the window's sliders).
+#[derive(Message)]
+#[rtype(result = "Result<(), PacingError>")]
+pub struct SetPacing(pub Pacing);
+
+/// The sink is done with a frame handed over with [`FrameShown`] (or never took it).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct SinkFreed;
+
+/// How the assembler paces and how far ahead of the sink it may be.
+#[derive(Clone, Copy, Debug)]
+pub struct AssemblerConfig {
+    pub pacing: Pacing,
+    /// I_t's denominator before the first frame was displayed.
+    pub initial_frame_time: Duration,
+    /// Frames handed to the sink and not yet shown, at most (at least 1).
+    pub sink_in_flight: usize,
+    pub policy: RestartPolicy,
+}
+
+/// Where displayed frames go.
+pub struct AssemblerLinks {
+    pub shown_to: Recipient<FrameShown>,
+    pub skipped_to: Recipient<FrameSkipped>,
+    /// Every new scene state at once (the sink computes its G-buffer ahead).
+    pub prepare_to: Recipient<PrepareState>,
+}
+
+/// The frames in flight, their pacing and where they go.
 pub struct Assembler {
     table: FrameTable,
-    progress_to: Recipient<FrameProgress>,
+    pacer: Pacer,
+    /// Shown frames per scene state, decided here once for the stats and the sink.
+    accumulation: Accumulation,
+    /// The wait heuristic's next deadline.
+    timer: Option<SpawnHandle>,
+    sink_in_flight: usize,
+    max_sink_in_flight: usize,
+    links: AssemblerLinks,
+    /// The scheduler, as its last [`FrameScheduled`] named it.
+    displayed_to: Option<Recipient<FrameDisplayed>>,
     counters: Arc<Counters>,
     /// Late results are counted per worker too (the status panel).
     workers: Arc<WorkerTable>,
@@ -70,17 +134,23 @@ pub struct Assembler {
 impl Assembler {
     pub fn new(
         sets: Arc<SetTable>,
-        progress_to: Recipient<FrameProgress>,
+        config: AssemblerConfig,
+        links: AssemblerLinks,
         counters: Arc<Counters>,
         workers: Arc<WorkerTable>,
-        policy: RestartPolicy,
     ) -> Self {
         Self {
             table: FrameTable::new(sets),
-            progress_to,
+            pacer: Pacer::new(config.pacing, config.initial_frame_time, Instant::now()),
+            accumulation: Accumulation::default(),
+            timer: None,
+            sink_in_flight: 0,
+            max_sink_in_flight: config.sink_in_flight.max(1),
+            links,
+            displayed_to: None,
             counters,
             workers,
-            restarts: RestartTracker::new(policy),
+            restarts: RestartTracker::new(config.policy),
         }
     }
 }
@@ -92,27 +162,20 @@ impl Actor for Assembler {
 impl Handler<FrameScheduled> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: FrameScheduled, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |a| {
-            a.table.open(msg.frame, msg.state);
-            a.report_progress(msg.frame);
+        self.guarded(ctx, |a, ctx| {
+            a.displayed_to = Some(msg.displayed_to);
+            a.table.open(msg.frame, msg.state, Instant::now());
+            a.evaluate(ctx);
         });
     }
 }
 
-impl Handler<JobsHandedOut> for Assembler {
+impl Handler<FrameStarted> for Assembler {
     type Result = ();
-    fn handle(&mut self, msg: JobsHandedOut, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |a| {
-            for (frame, set) in msg.jobs {
-                let first = !a.table.started(frame);
-                if a.table.handed_out(frame, set, msg.conn) {
-                    tracing::error!(frame, set, "a job was handed out twice");
-                    Counters::add(&a.counters.jobs_handed_twice, 1);
-                }
-                if first {
-                    a.report_progress(frame);
-                }
-            }
+    fn handle(&mut self, msg: FrameStarted, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |a, ctx| {
+            a.table.start(msg.frame, Instant::now());
+            a.evaluate(ctx);
         });
     }
 }
@@ -120,28 +183,24 @@ impl Handler<JobsHandedOut> for Assembler {
 impl Handler<ResultArrived> for Assembler {
     type Result = ();
     fn handle(&mut self, msg: ResultArrived, ctx: &mut Context<Self>) {
-        self.guarded(ctx, move |a| {
-            let JobResult { frame, set, state_version, radiance, .. } = msg.result;
-            let admission = a.table.accept(msg.conn, frame, set, state_version, radiance);
+        self.guarded(ctx, move |a, ctx| {
+            let JobResult { frame, set, radiance, .. } = msg.result;
+            let admission = a.table.accept(msg.conn, frame, set, radiance);
             let c = &a.counters;
             match admission {
-                Admission::Accepted { back, total } => {
+                Admission::Accepted { .. } => {
                     Counters::add(&c.results_accepted, 1);
-                    let started = true;
-                    a.progress_to.do_send(FrameProgress {
-                        frame,
-                        state_version,
-                        back,
-                        total,
-                        started,
-                    });
+                    a.evaluate(ctx);
                 }
                 Admission::Late => {
                     Counters::add(&c.dropped_late, 1);
                     a.workers.late(msg.conn);
                 }
-                Admission::Duplicate => Counters::add(&c.dropped_duplicate, 1),
                 Admission::Unknown => Counters::add(&c.dropped_unknown, 1),
+                Admission::HandedTwice => {
+                    tracing::error!(frame, set, "a job was handed out twice");
+                    Counters::add(&c.jobs_handed_twice, 1);
+                }
             }
             if !matches!(admission, Admission::Accepted { .. }) {
                 tracing::debug!(conn = msg.conn, frame, set, ?admission, "result dropped");
@@ -150,40 +209,130 @@ impl Handler<ResultArrived> for Assembler {
     }
 }
 
-impl Handler<CloseFrame> for Assembler {
-    type Result = Option<ClosedFrame>;
-    fn handle(&mut self, msg: CloseFrame, ctx: &mut Context<Self>) -> Option<ClosedFrame> {
-        let mut out = None;
-        self.guarded(ctx, |a| out = a.table.close(msg.frame));
-        out
+impl Handler<FramesOutdated> for Assembler {
+    type Result = ();
+    fn handle(&mut self, msg: FramesOutdated, ctx: &mut Context<Self>) {
+        self.links.prepare_to.do_send(PrepareState(msg.state));
+        self.guarded(ctx, |a, ctx| {
+            a.pacer.outdated(msg.before);
+            a.evaluate(ctx);
+        });
+    }
+}
+
+impl Handler<FramesAbandoned> for Assembler {
+    type Result = ();
+    fn handle(&mut self, msg: FramesAbandoned, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |a, ctx| {
+            a.pacer.abandoned(msg.before);
+            a.evaluate(ctx);
+        });
+    }
+}
+
+impl Handler<SetPacing> for Assembler {
+    type Result = Result<(), PacingError>;
+    fn handle(&mut self, msg: SetPacing, ctx: &mut Context<Self>) -> Self::Result {
+        msg.0.validate()?;
+        // A looser bound may show the waiting frame at once; a tighter one re-arms the timer.
+        self.guarded(ctx, |a, ctx| {
+            a.pacer.set_pacing(msg.0);
+            a.evaluate(ctx);
+        });
+        Ok(())
+    }
+}
+
+impl Handler<SinkFreed> for Assembler {
+    type Result = ();
+    fn handle(&mut self, _: SinkFreed, ctx: &mut Context<Self>) {
+        self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
+        self.evaluate_guarded(ctx);
     }
 }
 
 impl Handler<InjectPanic> for Assembler {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |_| panic!("injected panic in the frame assembler"));
+        self.guarded(ctx, |_, _| panic!("injected panic in the frame assembler"));
     }
 }
 
 impl Assembler {
-    /// Tells the display how far an open frame is.
-    fn report_progress(&self, frame: FrameNo) {
-        if let (Some((back, total)), Some(state_version)) =
-            (self.table.progress(frame), self.table.version(frame))
-        {
-            let started = self.table.started(frame);
-            self.progress_to.do_send(FrameProgress { frame, state_version, back, total, started });
+    /// Decides about the oldest frame not yet displayed, and the next ones while they
+    /// are decided at once; else arms the timer for the heuristic's next deadline.
+    fn evaluate(&mut self, ctx: &mut Context<Self>) {
+        if let Some(t) = self.timer.take() {
+            ctx.cancel_future(t);
+        }
+        while self.sink_in_flight < self.max_sink_in_flight {
+            let Some((frame, progress)) = self.table.oldest() else { return };
+            let later = self.table.later_has_results(frame);
+            let now = Instant::now();
+            let j = self.pacer.judge(frame, &progress, later, now);
+            tracing::trace!(frame, back = progress.back, total = progress.total,
+                elapsed = ?j.elapsed, decision = ?j.decision, "display decision");
+            match j.decision {
+                Decision::Wait { recheck_at } => {
+                    let wait = recheck_at.saturating_sub(j.elapsed).max(Duration::from_micros(100));
+                    self.timer = Some(ctx.run_later(wait, |a, ctx| {
+                        a.timer = None;
+                        a.evaluate_guarded(ctx);
+                    }));
+                    return;
+                }
+                Decision::Show => self.display(frame, true, &j, now, ctx),
+                Decision::Skip => self.display(frame, false, &j, now, ctx),
+            }
+        }
+    }
+
+    /// [`Assembler::evaluate`] outside a handler (timers, after a restart), contained.
+    fn evaluate_guarded(&mut self, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |a, ctx| a.evaluate(ctx));
+    }
+
+    /// Takes `frame` out of the table, pushes it to the presenter (shown or skipped) and
+    /// tells the scheduler.
+    fn display(
+        &mut self,
+        frame: FrameNo,
+        show: bool,
+        j: &Judgement,
+        now: Instant,
+        ctx: &mut Context<Self>,
+    ) {
+        let Some(closed) = self.table.close(frame) else { return };
+        self.pacer.displayed(frame, show, j, now);
+        if let Some(to) = &self.displayed_to {
+            to.do_send(FrameDisplayed { frame });
+        }
+        if show {
+            let accumulated_frames = self.accumulation.add(closed.state.version);
+            self.sink_in_flight += 1;
+            self.links.shown_to.do_send(FrameShown {
+                closed,
+                q: j.q,
+                i: j.i,
+                wait: j.elapsed,
+                accumulated_frames,
+                freed_to: ctx.address().recipient(),
+            });
+        } else {
+            let (back, total) = (closed.back, closed.total);
+            tracing::debug!(frame, back, total, "frame skipped");
+            self.links.skipped_to.do_send(FrameSkipped { frame, back });
         }
     }
 
     /// Runs a handler body; a panic restarts the table (frames in flight are lost and
     /// will be skipped, displayed frames stay refused) after the policy's back-off.
-    fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self)) {
-        if let Err(msg) = contain(|| f(self)) {
+    fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self, &mut Context<Self>)) {
+        if let Err(msg) = contain(|| f(self, ctx)) {
             let counters = self.counters.clone();
             if after_panic("frame assembler", &msg, &mut self.restarts, &counters, ctx) {
                 self.table = self.table.restarted();
+                ctx.run_later(Duration::ZERO, |a, ctx| a.evaluate_guarded(ctx));
             }
         }
     }

@@ -1,4 +1,4 @@
-//! When to show a frame (paper §4.3): pure logic behind the display actor.
+//! When to show a frame (paper §4.3): pure logic behind the frame assembler actor ([`pacer`](super::pacer) keeps its clock).
 //!
 //! Q_t = jobs back / jobs of the frame; I_t = time on this frame / time of the last
 //! shown frame. The display waits while `(Q < Q_max ∧ I < I_min) ∨ (Q < Q_min ∧ I < I_max)`;
@@ -27,7 +27,7 @@ impl Default for Heuristic {
     }
 }
 
-/// How the display paces frames.
+/// How the frame assembler paces frames.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Pacing {
     Heuristic(Heuristic),
@@ -75,7 +75,7 @@ pub enum PacingError {
     FrameRate(f32),
 }
 
-/// What the display does with the current frame now.
+/// What the frame assembler does with the oldest frame now.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Decision {
     /// Keep waiting; decide again when a result arrives or, at the latest, when the

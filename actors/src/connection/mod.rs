@@ -3,8 +3,9 @@
 //! The [`Session`] holds the protocol (phases, authentication, credits, state versions,
 //! result checks, the answered memory); this actor feeds it what arrives (worker
 //! messages, the scheduler's jobs, a keep-alive tick) and carries out the actions it
-//! returns: writing to the socket, asking the scheduler for jobs, forwarding results to
-//! the frame assembler, keeping the worker table and the counters, and closing after a
+//! returns: writing to the socket, asking the scheduler for jobs, forwarding the answers
+//! to its jobs to the frame assembler (duplicates and unknown results stop here, counted),
+//! keeping the worker table and the counters, and closing after a
 //! `Rejected` that names the problem. Any protocol violation ends this connection only;
 //! every log line names the peer. The jobs it held are never handed out again.
 
@@ -238,9 +239,13 @@ impl Connection {
                     self.links.answered_to.do_send(JobAnswered { conn: self.id, frame, set });
                     self.links.results_to.do_send(ResultArrived { conn: self.id, result });
                 }
-                // Dropped and counted by the assembler.
-                Action::Duplicate(result) | Action::Unknown(result) => {
-                    self.links.results_to.do_send(ResultArrived { conn: self.id, result })
+                Action::Duplicate { frame, set } => {
+                    Counters::add(&self.counters.dropped_duplicate, 1);
+                    tracing::debug!(conn = self.id, frame, set, "duplicate result dropped");
+                }
+                Action::Unknown { frame, set } => {
+                    Counters::add(&self.counters.dropped_unknown, 1);
+                    tracing::debug!(conn = self.id, frame, set, "unknown result dropped");
                 }
                 Action::Superseded { frame, set } => {
                     Counters::add(&self.counters.jobs_superseded, 1);

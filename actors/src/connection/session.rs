@@ -48,11 +48,12 @@ pub enum Action {
     /// The answer to a job this connection holds: to the assembler, and the scheduler
     /// measures the worker's job time from it.
     Answered(JobResult),
-    /// A second answer to a job already answered: dropped and counted.
-    Duplicate(JobResult),
+    /// A second answer to a job already answered: dropped and counted here, the only
+    /// place that knows.
+    Duplicate { frame: FrameNo, set: SetNo },
     /// A result for a job never given to this worker: dropped and counted (a
     /// [`Action::Reject`] follows).
-    Unknown(JobResult),
+    Unknown { frame: FrameNo, set: SetNo },
     /// The worker dropped a job it held without rendering it (a newer state's job came
     /// first): lost like any other, its slot free for the `Ready` that follows.
     Superseded { frame: FrameNo, set: SetNo },
@@ -83,7 +84,8 @@ pub struct Session {
     cores: u32,
     /// State versions already sent on this connection.
     sent_versions: HashSet<StateVersion>,
-    /// Jobs sent and not yet answered, with the version they name.
+    /// Jobs sent and not yet answered, with the version they name: the master's only
+    /// record of who holds which job (a result is checked against it, here, once).
     held: HashMap<(FrameNo, SetNo), StateVersion>,
     answered: VecDeque<(FrameNo, SetNo)>,
     answered_set: HashSet<(FrameNo, SetNo)>,
@@ -325,12 +327,12 @@ impl Session {
         }
         let key = (r.frame, r.set);
         let Some(job) = self.held.remove(&key) else {
+            let (frame, set) = key;
             if self.answered_set.contains(&key) {
-                out.push(Action::Duplicate(r));
+                out.push(Action::Duplicate { frame, set });
                 return Ok(());
             }
-            let (frame, set) = key;
-            out.push(Action::Unknown(r));
+            out.push(Action::Unknown { frame, set });
             return Err(Rejection::UnknownResult { frame, set });
         };
         let (frame, set) = key;
@@ -588,11 +590,11 @@ mod tests {
         assert_eq!(s.held(), 0);
         let out = s.on_message(answer(&s, &key, 3, 1, 1), now);
         assert!(
-            matches!(out[..], [Action::Duplicate(_)]),
+            out[..] == [Action::Duplicate { frame: 3, set: 1 }],
             "a second answer is a duplicate: {out:?}"
         );
         let out = s.on_message(answer(&s, &key, 3, 2, 1), now);
-        assert!(matches!(out[0], Action::Unknown(_)));
+        assert_eq!(out[0], Action::Unknown { frame: 3, set: 2 });
         assert_eq!(rejection(&out), Some(&Rejection::UnknownResult { frame: 3, set: 2 }));
     }
 

@@ -1,19 +1,15 @@
-//! The display actor: decides when each frame is shown (§4.3) and hands it to the sink.
+//! The presenter actor: where a displayed frame ends up.
 //!
-//! It follows the oldest frame not yet displayed, asks the [`wait_heuristic`] on every
-//! progress report and at the heuristic's deadlines, then closes the frame at the
-//! assembler (late results are refused from then on), tells the scheduler, counts the
-//! frames shown with the same state version (the sink accumulates their pixels) and
-//! sends one [`ShownFrame`] per shown frame to the sink thread. Skipped frames only count.
-//!
-//! [`wait_heuristic`]: crate::assembler::wait_heuristic
+//! The frame assembler decides when a frame is shown or skipped and pushes it here one
+//! way. The presenter hands a shown frame to the sink thread (still packed), publishes
+//! its statistics (the report the master's handle reads, `--stats`), counts skipped
+//! frames, and stops the master after `max_frames` shown frames. When the sink is done
+//! with a frame it frees its place at the assembler (the address came with the frame).
 
 pub mod edit_latency;
-pub mod new_view;
 pub mod sink;
 pub mod stats;
 
-use std::collections::BTreeMap;
 use std::sync::mpsc::{SyncSender, TrySendError};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
@@ -21,59 +17,50 @@ use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
-use crate::assembler::accumulate::Accumulator;
 use crate::assembler::frame_table::ClosedFrame;
-use crate::assembler::wait_heuristic::{
-    decide, interaction, quality, Decision, Pacing, PacingError,
-};
-use crate::assembler::CloseFrame;
+use crate::assembler::SinkFreed;
 use crate::connection::workers::WorkerTable;
 use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, Preparer, SinkOutcome};
 use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
-use crate::scene::state::{SceneState, StateVersion};
-use crate::scheduler::FrameDisplayed;
+use crate::scene::state::SceneState;
 use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
 use crate::wire::protocol::FrameNo;
-use new_view::NewView;
 
 /// Frames handed to the sink thread and not yet shown, at most, by default: two keep a
-/// fast sink busy. An interactive master uses one ([`PresenterConfig::sink_in_flight`]): a
+/// fast sink busy. An interactive master uses one (`MasterConfig::sink_in_flight`): a
 /// frame waiting behind another in the sink is a frame decided one compose time before
 /// it is shown, so it shows an older view than the one decided when the sink is free.
 pub const DEFAULT_SINK_IN_FLIGHT: usize = 2;
 
-/// To the display: `back` of `total` jobs of `frame` are in.
+/// To the presenter: the assembler shows this frame.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct FrameShown {
+    pub closed: ClosedFrame,
+    /// Q_t and I_t when it was decided.
+    pub q: f64,
+    pub i: f64,
+    /// Time from the start of the frame to its decision.
+    pub wait: Duration,
+    /// Shown frames of its scene state, this one included (1: accumulation starts over).
+    pub accumulated_frames: u32,
+    /// Told when the sink is done with it.
+    pub freed_to: Recipient<SinkFreed>,
+}
+
+/// To the presenter: the assembler skipped `frame` (Q_min not reached by I_max, or
+/// passed over), with `back` results that are never used.
 #[derive(Message, Clone, Copy, Debug)]
 #[rtype(result = "()")]
-pub struct FrameProgress {
+pub struct FrameSkipped {
     pub frame: FrameNo,
-    pub state_version: StateVersion,
     pub back: u32,
-    pub total: u32,
-    /// A job of the frame was handed out: its computation has started.
-    pub started: bool,
 }
 
-/// To the display: frames before `before` were made with an outdated scene state; their
-/// queued jobs were discarded, so only results already held by workers can still come.
-/// The display shows such a frame at once with what it has (or skips it when empty)
-/// instead of waiting for them.
-#[derive(Message, Debug, Clone)]
+/// To the presenter: a new scene state; the sink may prepare for it (G-buffer ahead).
+#[derive(Message)]
 #[rtype(result = "()")]
-pub struct FramesOutdated {
-    pub before: FrameNo,
-    /// The new state, which the frames from `before` on have.
-    pub state: Arc<SceneState>,
-}
-
-/// To the display: frames before `before` lost their queued jobs (the scheduler
-/// restarted) and will get no results beyond those already handed out. Waiting for them
-/// says nothing about the workers' speed, so the display decides on them at once.
-#[derive(Message, Debug, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct FramesAbandoned {
-    pub before: FrameNo,
-}
+pub struct PrepareState(pub Arc<SceneState>);
 
 /// The sink finished one frame (or failed).
 #[derive(Message)]
@@ -85,7 +72,7 @@ pub struct SinkDone(pub SinkOutcome);
 #[rtype(result = "()")]
 pub struct Shutdown;
 
-/// What the master's handle can see of the display, shared with it.
+/// What the master's handle can see of the presenter, shared with it.
 #[derive(Debug, Default)]
 pub struct Report {
     pub state: Mutex<ReportState>,
@@ -117,71 +104,35 @@ pub struct ReportState {
     pub error: Option<String>,
 }
 
-/// Progress of a frame not yet displayed.
-#[derive(Clone, Copy, Debug)]
-struct Pending {
-    back: u32,
-    total: u32,
-    scheduled_at: Instant,
-    /// Its first job was handed out: the start of its computation, from which the
-    /// heuristic measures the frame's time (paper §4.3).
-    started_at: Option<Instant>,
-}
-
-/// Pacing, the frames being waited on, accumulation and the sink.
+/// The sink thread, the report and the counts of shown and skipped frames.
 pub struct Presenter {
-    pacing: Pacing,
-    /// Time the last shown frame took (I_t's denominator).
-    last_frame_time: Duration,
-    pending: BTreeMap<FrameNo, Pending>,
-    /// Frames up to this one were displayed.
-    last_closed: Option<FrameNo>,
-    /// Frames below this one lost their queued jobs (a scheduler restart): decided at once
-    /// and left out of the frame time, so lost work cannot stretch I_max (each skip at
-    /// I_max would otherwise multiply the next frame's wait by I_max).
-    abandoned_before: FrameNo,
-    /// The last frame shown (the rule around edits, [`NewView`]).
-    last_shown: Option<FrameNo>,
-    /// Frames below this one have an outdated scene state: shown at once with what they
-    /// have (skipped when empty), never waited for, and left out of the frame time.
-    outdated_before: FrameNo,
-    last_close_at: Instant,
-    /// A CloseFrame is on its way to the assembler.
-    closing: bool,
     skipped_since_show: u64,
     shown: u64,
     max_frames: Option<u64>,
-    accum: Accumulator,
-    /// Heuristic deadline timer.
-    timer: Option<SpawnHandle>,
     sink: Option<Box<dyn FrameSink>>,
+    /// Frames the sink channel holds (the assembler never hands over more).
+    sink_capacity: usize,
     /// The sink's, told every new scene state at once (G-buffers computed ahead).
     prepare: Option<Preparer>,
     sink_tx: Option<SyncSender<PackedShownFrame>>,
     sink_thread: Option<JoinHandle<()>>,
-    sink_in_flight: usize,
-    /// The most frames handed to the sink and not yet shown.
-    max_sink_in_flight: usize,
-    close_to: Recipient<CloseFrame>,
-    displayed_to: Recipient<FrameDisplayed>,
+    /// Where the sink's finished frames are freed (the assembler, named by its frames).
+    freed_to: Option<Recipient<SinkFreed>>,
     counters: Arc<Counters>,
     /// The connected workers: the paused ones are listed in each frame's statistics.
     workers: Arc<WorkerTable>,
     report: Arc<Report>,
     restarts: RestartTracker,
     finished: bool,
-    /// When the display was made (the master's start), for `shown_at_ms`.
+    /// When the presenter was made (the master's start), for `shown_at_ms`.
     started: Instant,
 }
 
-/// Construction parameters of the display.
+/// Construction parameters of the presenter.
 pub struct PresenterConfig {
-    pub pacing: Pacing,
-    /// I_t's denominator before the first frame was shown.
-    pub initial_frame_time: Duration,
     pub max_frames: Option<u64>,
     pub policy: RestartPolicy,
-    /// Frames handed to the sink and not yet shown, at most (at least 1).
+    /// Frames handed to the sink and not yet shown, at most (the assembler's bound).
     pub sink_in_flight: usize,
 }
 
@@ -189,35 +140,20 @@ impl Presenter {
     pub fn new(
         config: PresenterConfig,
         sink: Box<dyn FrameSink>,
-        close_to: Recipient<CloseFrame>,
-        displayed_to: Recipient<FrameDisplayed>,
         counters: Arc<Counters>,
         workers: Arc<WorkerTable>,
         report: Arc<Report>,
     ) -> Self {
         Self {
-            pacing: config.pacing,
-            last_frame_time: config.initial_frame_time,
-            pending: BTreeMap::new(),
-            last_closed: None,
-            abandoned_before: 0,
-            outdated_before: 0,
-            last_shown: None,
-            last_close_at: Instant::now(),
-            closing: false,
             skipped_since_show: 0,
             shown: 0,
             max_frames: config.max_frames,
-            accum: Accumulator::default(),
-            timer: None,
             sink: Some(sink),
+            sink_capacity: config.sink_in_flight.max(1),
             prepare: None,
             sink_tx: None,
             sink_thread: None,
-            sink_in_flight: 0,
-            max_sink_in_flight: config.sink_in_flight.max(1),
-            close_to,
-            displayed_to,
+            freed_to: None,
             counters,
             workers,
             report,
@@ -235,8 +171,7 @@ impl Actor for Presenter {
         let Some(mut sink) = self.sink.take() else { return };
         self.prepare = sink.preparer();
         let me = ctx.address();
-        let capacity = self.max_sink_in_flight;
-        match spawn_sink(sink, capacity, move |outcome| me.do_send(SinkDone(outcome))) {
+        match spawn_sink(sink, self.sink_capacity, move |outcome| me.do_send(SinkDone(outcome))) {
             Ok((tx, thread)) => {
                 self.sink_tx = Some(tx);
                 self.sink_thread = Some(thread);
@@ -246,52 +181,54 @@ impl Actor for Presenter {
     }
 }
 
-impl Handler<FrameProgress> for Presenter {
+impl Handler<FrameShown> for Presenter {
     type Result = ();
-    fn handle(&mut self, msg: FrameProgress, ctx: &mut Context<Self>) {
-        if self.last_closed.is_some_and(|c| msg.frame <= c) {
-            return;
+    fn handle(&mut self, msg: FrameShown, ctx: &mut Context<Self>) {
+        let freed_to = msg.freed_to.clone();
+        self.freed_to = Some(msg.freed_to.clone());
+        if self.finished {
+            return freed_to.do_send(SinkFreed);
         }
-        let now = Instant::now();
-        let p = self.pending.entry(msg.frame).or_insert(Pending {
-            back: 0,
-            total: msg.total,
-            scheduled_at: now,
-            started_at: None,
-        });
-        if msg.started && p.started_at.is_none() {
-            p.started_at = Some(now);
+        match contain(|| self.show(msg)) {
+            Ok(true) => {}
+            // Not handed to the sink: its place is free at once.
+            Ok(false) => freed_to.do_send(SinkFreed),
+            Err(panic) => {
+                freed_to.do_send(SinkFreed);
+                self.restart_after(&panic, ctx);
+            }
         }
-        p.back = p.back.max(msg.back);
-        p.total = msg.total;
-        self.evaluate(ctx);
+    }
+}
+
+impl Handler<FrameSkipped> for Presenter {
+    type Result = ();
+    fn handle(&mut self, msg: FrameSkipped, _: &mut Context<Self>) {
+        Counters::add(&self.counters.results_unused, u64::from(msg.back));
+        self.skipped_since_show += 1;
+        self.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
+        self.report.changed.notify_all();
+    }
+}
+
+impl Handler<PrepareState> for Presenter {
+    type Result = ();
+    fn handle(&mut self, msg: PrepareState, _: &mut Context<Self>) {
+        if let Some(prepare) = &self.prepare {
+            prepare(msg.0);
+        }
     }
 }
 
 impl Handler<SinkDone> for Presenter {
     type Result = ();
-    fn handle(&mut self, msg: SinkDone, ctx: &mut Context<Self>) {
-        self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
-        match msg.0 {
-            Ok(()) => self.evaluate(ctx),
-            Err(e) => self.fail(e.to_string()),
+    fn handle(&mut self, msg: SinkDone, _: &mut Context<Self>) {
+        if let Some(to) = &self.freed_to {
+            to.do_send(SinkFreed);
         }
-    }
-}
-
-/// Changes how frames are paced from now on (the window's sliders).
-#[derive(Message)]
-#[rtype(result = "Result<(), PacingError>")]
-pub struct SetPacing(pub Pacing);
-
-impl Handler<SetPacing> for Presenter {
-    type Result = Result<(), PacingError>;
-    fn handle(&mut self, msg: SetPacing, ctx: &mut Context<Self>) -> Self::Result {
-        msg.0.validate()?;
-        self.pacing = msg.0;
-        // A looser bound may show the waiting frame at once; a tighter one re-arms the timer.
-        self.evaluate(ctx);
-        Ok(())
+        if let Err(e) = msg.0 {
+            self.fail(e.to_string());
+        }
     }
 }
 
@@ -299,25 +236,6 @@ impl Handler<Shutdown> for Presenter {
     type Result = ();
     fn handle(&mut self, _: Shutdown, _: &mut Context<Self>) {
         self.finish(None);
-    }
-}
-
-impl Handler<FramesAbandoned> for Presenter {
-    type Result = ();
-    fn handle(&mut self, msg: FramesAbandoned, ctx: &mut Context<Self>) {
-        self.abandoned_before = self.abandoned_before.max(msg.before);
-        self.evaluate(ctx);
-    }
-}
-
-impl Handler<FramesOutdated> for Presenter {
-    type Result = ();
-    fn handle(&mut self, msg: FramesOutdated, ctx: &mut Context<Self>) {
-        if let Some(prepare) = &self.prepare {
-            prepare(msg.state);
-        }
-        self.outdated_before = self.outdated_before.max(msg.before);
-        self.evaluate(ctx);
     }
 }
 
@@ -331,120 +249,11 @@ impl Handler<InjectPanic> for Presenter {
 }
 
 impl Presenter {
-    /// Decides about the oldest frame not yet displayed.
-    fn evaluate(&mut self, ctx: &mut Context<Self>) {
-        if self.closing || self.finished || self.sink_in_flight >= self.max_sink_in_flight {
-            return;
-        }
-        let Some((&frame, &p)) = self.pending.iter().next() else { return };
-        // The heuristic times a frame from the start of its computation, so frames that
-        // were computed side by side and complete together are not judged by the instant
-        // between their displays (a frame after such a burst would be skipped at once, its
-        // results all late). A fixed rate, and a frame not started yet, count from the
-        // later of its scheduling and the previous display.
-        let queued = p.scheduled_at.max(self.last_close_at);
-        let start = match (self.pacing, p.started_at) {
-            (Pacing::Heuristic(_), Some(started)) => started,
-            _ => queued,
-        };
-        let elapsed = start.elapsed();
-        // Around an edit the new view comes first ([`NewView`]): frames of an outdated
-        // state are never waited for, the new state's first frame is shown with its first
-        // result. Those decisions are the edit's, left out of the frame time as abandoned
-        // frames are (judged as if their time were up: shown if good enough).
-        let later_has_results = self.pending.range(frame + 1..).any(|(_, later)| later.back > 0);
-        let view = NewView { outdated_before: self.outdated_before, last_shown: self.last_shown };
-        let around_edit = view.decide(frame, p.back, later_has_results);
-        let abandoned = frame < self.abandoned_before || around_edit.is_some();
-        let judged_at = if abandoned { Duration::MAX } else { elapsed };
-        let decision = match contain(|| {
-            decide(&self.pacing, p.back, p.total, judged_at, self.last_frame_time)
-        }) {
-            Ok(d) => around_edit.unwrap_or(d),
-            Err(msg) => return self.restart_after(&msg, ctx),
-        };
-        if let Some(t) = self.timer.take() {
-            ctx.cancel_future(t);
-        }
-        tracing::trace!(
-            frame,
-            back = p.back,
-            total = p.total,
-            ?elapsed,
-            ?decision,
-            "display decision"
-        );
-        match decision {
-            Decision::Wait { recheck_at } => {
-                let wait = recheck_at.saturating_sub(elapsed).max(Duration::from_micros(100));
-                self.timer = Some(ctx.run_later(wait, |act, ctx| {
-                    act.timer = None;
-                    act.evaluate(ctx);
-                }));
-            }
-            Decision::Show => self.close(frame, false, abandoned, elapsed, p, ctx),
-            Decision::Skip => self.close(frame, true, abandoned, elapsed, p, ctx),
-        }
-    }
-
-    /// Takes `frame` from the assembler; shows it (or only counts it when skipped). The
-    /// time an abandoned frame took is not the workers' frame time.
-    fn close(
-        &mut self,
-        frame: FrameNo,
-        skip: bool,
-        abandoned: bool,
-        elapsed: Duration,
-        p: Pending,
-        ctx: &mut Context<Self>,
-    ) {
-        self.closing = true;
-        let i = interaction(elapsed, self.last_frame_time);
-        let q = quality(p.back, p.total);
-        self.close_to
-            .send(CloseFrame { frame })
-            .into_actor(self)
-            .map(move |res, act, ctx| {
-                act.closing = false;
-                act.last_closed = Some(frame);
-                act.last_close_at = Instant::now();
-                act.pending.retain(|f, _| *f > frame);
-                act.displayed_to.do_send(FrameDisplayed { frame });
-                match res {
-                    Ok(Some(closed)) if !skip => {
-                        act.last_shown = Some(frame);
-                        if !abandoned {
-                            act.last_frame_time = elapsed;
-                        }
-                        if let Err(msg) = contain(|| act.show(closed, q, i, elapsed)) {
-                            return act.restart_after(&msg, ctx);
-                        }
-                    }
-                    other => {
-                        if let Ok(Some(closed)) = other {
-                            Counters::add(&act.counters.results_unused, u64::from(closed.back));
-                        }
-                        // The skipped frame's time becomes the last frame's time, so that
-                        // when workers slow down I_max grows until frames complete again
-                        // (otherwise a fast past would make every frame skip forever).
-                        if !abandoned {
-                            act.last_frame_time = elapsed;
-                        }
-                        act.skipped_since_show += 1;
-                        act.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
-                        act.report.changed.notify_all();
-                        tracing::debug!(frame, back = p.back, total = p.total, "frame skipped");
-                    }
-                }
-                act.evaluate(ctx);
-            })
-            .spawn(ctx);
-    }
-
-    /// Accumulates a closed frame, sends it to the sink and publishes its statistics.
-    fn show(&mut self, closed: ClosedFrame, q: f64, i: f64, elapsed: Duration) {
+    /// Sends a shown frame to the sink and publishes its statistics; false when the
+    /// sink did not take it.
+    fn show(&mut self, msg: FrameShown) -> bool {
+        let FrameShown { closed, q, i, wait, accumulated_frames, .. } = msg;
         let version = closed.state.version;
-        self.accum.add(version);
         self.shown += 1;
         let c = &self.counters;
         Counters::add(&c.results_used, u64::from(closed.back));
@@ -460,7 +269,7 @@ impl Presenter {
             jobs_total: closed.total,
             q,
             i,
-            wait_ms: elapsed.as_secs_f64() * 1e3,
+            wait_ms: wait.as_secs_f64() * 1e3,
             shown_at_ms: self.started.elapsed().as_secs_f64() * 1e3,
             skipped: std::mem::take(&mut self.skipped_since_show),
             dropped_late: late,
@@ -476,7 +285,7 @@ impl Presenter {
             bytes_in: Counters::get(&c.bytes_in),
             bytes_out: Counters::get(&c.bytes_out),
             shown: self.shown,
-            accumulated_frames: self.accum.frames(),
+            accumulated_frames,
             edits_at: c.edits.shown(version),
             edit_latency_ms: Vec::new(),
             results_used: used,
@@ -493,16 +302,19 @@ impl Presenter {
             owners: closed.owners,
             stats: stats.clone(),
         };
-        if let Some(tx) = &self.sink_tx {
-            match tx.try_send(frame) {
-                Ok(()) => self.sink_in_flight += 1,
-                // Cannot happen while sink_in_flight bounds the channel; never block here.
-                Err(TrySendError::Full(_)) => {
-                    tracing::warn!(frame = stats.frame, "sink full; frame not shown")
-                }
-                Err(TrySendError::Disconnected(_)) => tracing::warn!("sink thread gone"),
+        let taken = match self.sink_tx.as_ref().map(|tx| tx.try_send(frame)) {
+            Some(Ok(())) => true,
+            // Cannot happen while the assembler bounds the frames in flight; never block here.
+            Some(Err(TrySendError::Full(_))) => {
+                tracing::warn!(frame = stats.frame, "sink full; frame not shown");
+                false
             }
-        }
+            Some(Err(TrySendError::Disconnected(_))) => {
+                tracing::warn!("sink thread gone");
+                false
+            }
+            None => false,
+        };
         {
             let mut r = self.report.state.lock().unwrap_or_else(|p| p.into_inner());
             r.shown = self.shown;
@@ -512,6 +324,7 @@ impl Presenter {
         if self.max_frames.is_some_and(|m| self.shown >= m) {
             self.finish(None);
         }
+        taken
     }
 
     /// Lets the sink finish, publishes the end and stops the actor system.
@@ -535,13 +348,9 @@ impl Presenter {
         self.finish(Some(error));
     }
 
-    /// After a contained panic: drop the accumulation and wait for the next frame.
+    /// After a contained panic: the frame it was showing is lost; the next one is shown.
     fn restart_after(&mut self, msg: &str, ctx: &mut Context<Self>) {
         let counters = self.counters.clone();
-        if after_panic("presenter", msg, &mut self.restarts, &counters, ctx) {
-            self.accum = Accumulator::default();
-            self.closing = false;
-            ctx.run_later(Duration::ZERO, |act, ctx| act.evaluate(ctx));
-        }
+        after_panic("presenter", msg, &mut self.restarts, &counters, ctx);
     }
 }

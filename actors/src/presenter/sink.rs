@@ -2,7 +2,7 @@
 //! reconstruction and the window implement, and the thread that drives it.
 //!
 //! The sink runs on its own thread so that writing files or reconstructing never
-//! blocks the actor system; the display hands it at most a couple of frames at a time
+//! blocks the actor system; the assembler lets at most a couple of frames at a time reach it
 //! and waits for it (back-pressure) rather than queueing frames without bound.
 
 use std::sync::mpsc::{Receiver, SyncSender};
@@ -20,7 +20,7 @@ use crate::supervision::contain;
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{FrameNo, SetNo};
 
-/// One frame the display decided to show.
+/// One frame the frame assembler decided to show.
 #[derive(Clone, Debug)]
 pub struct ShownFrame {
     pub frame: FrameNo,

@@ -1,4 +1,4 @@
-//! Counters shared by the actors and the per-frame statistics the display emits.
+//! Counters shared by the actors and the per-frame statistics the presenter publishes.
 //!
 //! Counters are plain atomics written by the actor that owns the event (connections
 //! count bytes and workers, the assembler counts dropped results) and read by the
@@ -30,7 +30,7 @@ pub struct Counters {
     pub dropped_unknown: AtomicU64,
     /// Results accepted into a frame.
     pub results_accepted: AtomicU64,
-    /// Results in frames that were shown (the display adds each shown frame's `jobs_back`):
+    /// Results in frames that were shown (the presenter adds each shown frame's `jobs_back`):
     /// the useful ones. Accepted results of skipped frames are not used.
     pub results_used: AtomicU64,
     /// Results accepted into frames that were then skipped: never used.
@@ -99,7 +99,7 @@ pub struct FrameStats {
     pub i: f64,
     /// Time from the start of this frame to its display.
     pub wait_ms: f64,
-    /// When the display showed it, in milliseconds since the master started (frame
+    /// When the presenter showed it, in milliseconds since the master started (frame
     /// periods and edit latencies line up on this clock).
     pub shown_at_ms: f64,
     /// Frames skipped (Q_min not reached by I_max) since the previous shown frame.
@@ -142,7 +142,7 @@ pub struct FrameStats {
 
 impl FrameStats {
     /// Sets `edit_latency_ms` for a frame shown at `now` (the sink calls it when the
-    /// frame is really shown; the display calls it when it hands the frame over).
+    /// frame is really shown; the presenter calls it when it hands the frame over).
     pub fn stamp_edit_latency(&mut self, now: Instant) {
         self.edit_latency_ms = self
             .edits_at

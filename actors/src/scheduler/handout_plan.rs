@@ -56,7 +56,7 @@ struct ConnClock {
     last_result: Option<Instant>,
 }
 
-/// The last frame the display shown or skipped.
+/// The last frame the assembler showed or skipped.
 #[derive(Clone, Copy, Debug)]
 struct Displayed {
     frame: FrameNo,
@@ -113,14 +113,20 @@ impl HandOutPlan {
         }
     }
 
-    /// `conn` was handed `(frame, set)` at `now`.
-    pub fn handed(&mut self, conn: ConnId, frame: FrameNo, set: SetNo, now: Instant) {
+    /// `conn` was handed `(frame, set)` at `now`. True when it is the frame's first
+    /// hand-out: the start of its computation.
+    pub fn handed(&mut self, conn: ConnId, frame: FrameNo, set: SetNo, now: Instant) -> bool {
         let arrival = self.arrival(conn, now);
+        let mut first = false;
         if self.last.is_none_or(|d| frame > d.frame) {
-            self.started.entry(frame).or_insert(now);
+            self.started.entry(frame).or_insert_with(|| {
+                first = true;
+                now
+            });
         }
         let c = self.conns.entry(conn).or_default();
         c.held.push_back(Held { frame, set, handed_at: now, arrival });
+        first
     }
 
     /// `conn` returned its result for `(frame, set)` at `now` (in time or not).
@@ -251,8 +257,8 @@ mod tests {
         let mut p = heuristic();
         let t0 = Instant::now();
         // Two jobs at once: the second is rendered after the first, so it also took 100 ms.
-        p.handed(1, 0, 0, t0);
-        p.handed(1, 0, 1, t0);
+        assert!(p.handed(1, 0, 0, t0), "the frame's first hand-out starts it");
+        assert!(!p.handed(1, 0, 1, t0));
         assert_eq!(p.arrival(1, t0), None, "unmeasured");
         p.answered(1, 0, 0, t0 + MS * 100);
         p.answered(1, 0, 1, t0 + MS * 200);

@@ -1,15 +1,17 @@
 //! The scheduler actor: the only place that hands out jobs (paper §4.2).
 //!
 //! It keeps the [`JobQueue`] topped up with frames of the latest scene state (each with the
-//! quota of sets the display can use), serves workers' credits in arrival order, each job
-//! from the frame the [`HandOutPlan`] says its result will be in time for, tells the frame
-//! assembler about every new frame and every hand-out *before* the job leaves (so a result
-//! can never overtake its bookkeeping), and drops queued jobs of frames the display has
-//! passed. The frame window grows with the credits and jobs the grid holds. When the
-//! scene state changes it discards the queued jobs of older versions at once and tells
-//! the display not to wait for the jobs of those frames still held by workers
-//! ([`FramesOutdated`]), so that the first frame of the new state is not queued behind
-//! a view the user has left (the edit-to-display latency).
+//! quota of sets the frame assembler can use), serves workers' credits in arrival order,
+//! each job from the frame the [`HandOutPlan`] says its result will be in time for, tells
+//! the frame assembler about every new frame before any of its jobs leaves and about its
+//! first hand-out (which times it), and drops queued jobs of frames already displayed.
+//! Who holds which job is the connections' to know (each checks its results against
+//! its own); the scheduler only counts per connection for its plan. The frame window
+//! grows with the credits and jobs the grid holds. When the scene state changes it
+//! discards the queued jobs of older versions at once and tells the assembler not to
+//! wait for the jobs of those frames still held by workers ([`FramesOutdated`]), so that
+//! the first frame of the new state is not queued behind a view the user has left (the
+//! edit-to-display latency).
 
 pub mod handout_plan;
 pub mod job_queue;
@@ -22,10 +24,9 @@ use std::time::Instant;
 use actix::prelude::*;
 
 use crate::assembler::wait_heuristic::Pacing;
-use crate::assembler::{FrameScheduled, JobsHandedOut};
+use crate::assembler::{FrameScheduled, FrameStarted, FramesAbandoned, FramesOutdated};
 use crate::connection::JobsAssigned;
 use crate::presenter::stats::Counters;
-use crate::presenter::{FramesAbandoned, FramesOutdated};
 use crate::scene::state::SceneState;
 use crate::scheduler::handout_plan::HandOutPlan;
 use crate::scheduler::job_queue::{Job, JobQueue};
@@ -68,12 +69,12 @@ pub struct JobAnswered {
     pub set: SetNo,
 }
 
-/// The display paces frames this way from now on (its quota and deadlines follow).
+/// Frames are paced this way from now on (the quota and deadlines follow).
 #[derive(Message, Clone, Copy)]
 #[rtype(result = "()")]
 pub struct PacingChanged(pub Pacing);
 
-/// The display shown or skipped `frame`: jobs of it and earlier frames are discarded.
+/// The assembler showed or skipped `frame`: jobs of it and earlier frames are discarded.
 #[derive(Message, Clone, Copy)]
 #[rtype(result = "()")]
 pub struct FrameDisplayed {
@@ -83,7 +84,7 @@ pub struct FrameDisplayed {
 /// Where the scheduler's events go.
 pub struct SchedulerLinks {
     pub frames_to: Recipient<FrameScheduled>,
-    pub handouts_to: Recipient<JobsHandedOut>,
+    pub started_to: Recipient<FrameStarted>,
     pub abandoned_to: Recipient<FramesAbandoned>,
     pub outdated_to: Recipient<FramesOutdated>,
 }
@@ -99,6 +100,8 @@ pub struct Scheduler {
     /// Connections with unserved credits, served front first.
     demand: VecDeque<(ConnId, u32, Recipient<JobsAssigned>)>,
     links: SchedulerLinks,
+    /// This actor's own address, named in [`FrameScheduled`] for the reply.
+    me: Option<Recipient<FrameDisplayed>>,
     counters: Arc<Counters>,
     restarts: RestartTracker,
     /// Discard queued jobs of outdated state versions on a state change (the default;
@@ -127,6 +130,7 @@ impl Scheduler {
             plan,
             demand: VecDeque::new(),
             links,
+            me: None,
             counters,
             restarts: RestartTracker::new(policy),
         }
@@ -145,6 +149,7 @@ impl Actor for Scheduler {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
+        self.me = Some(ctx.address().recipient());
         self.guarded(ctx, |s| s.dispatch());
     }
 }
@@ -250,9 +255,6 @@ impl Scheduler {
             let left = credits - jobs.len() as u32;
             if !jobs.is_empty() {
                 Counters::add(&self.counters.jobs_handed_out, jobs.len() as u64);
-                let pairs = jobs.iter().map(|j| (j.frame, j.set)).collect();
-                // Bookkeeping first: the assembler must know before the result can exist.
-                self.links.handouts_to.do_send(JobsHandedOut { conn, jobs: pairs });
                 to.do_send(JobsAssigned(jobs));
             }
             if left > 0 {
@@ -271,11 +273,13 @@ impl Scheduler {
             let mut frame = self.plan.choose(conn, &self.queue.frames(), now);
             while !frame.is_some_and(|f| self.plan.fits(conn, f, now)) {
                 let Some(f) = self.queue.open_frame() else { break };
-                self.links.frames_to.do_send(FrameScheduled { frame: f.frame, state: f.state });
+                self.scheduled(f.frame, f.state);
                 frame = self.plan.choose(conn, &self.queue.frames(), now);
             }
             let Some(job) = frame.and_then(|f| self.queue.take_from(f)) else { break };
-            self.plan.handed(conn, job.frame, job.set, now);
+            if self.plan.handed(conn, job.frame, job.set, now) {
+                self.links.started_to.do_send(FrameStarted { frame: job.frame });
+            }
             jobs.push(job);
         }
         jobs
@@ -284,7 +288,15 @@ impl Scheduler {
     /// Adds frames to the queue and tells the assembler about them.
     fn top_up(&mut self) {
         for f in self.queue.top_up() {
-            self.links.frames_to.do_send(FrameScheduled { frame: f.frame, state: f.state });
+            self.scheduled(f.frame, f.state);
+        }
+    }
+
+    /// Tells the assembler about a new frame, before any of its jobs can leave.
+    fn scheduled(&self, frame: FrameNo, state: Arc<SceneState>) {
+        if let Some(me) = &self.me {
+            let displayed_to = me.clone();
+            self.links.frames_to.do_send(FrameScheduled { frame, state, displayed_to });
         }
     }
 

@@ -104,6 +104,7 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
     let frame = |k: u64| FrameInputs {
         frame: k + 1,
         state_version: k + 1,
+        accumulated_frames: 1,
         radiance: &inp.radiance,
         mask: &inp.masks[k as usize % inp.masks.len()],
         gbuffer: &inp.gbuffer,

@@ -76,6 +76,7 @@ pub fn reconstruct_once(
     let out = r.reconstruct(&FrameInputs {
         frame: 1,
         state_version: 1,
+        accumulated_frames: 1,
         radiance: &frame.radiance,
         mask,
         gbuffer: g,

@@ -64,6 +64,7 @@ pub fn interaction(
         let inputs = FrameInputs {
             frame,
             state_version: frame,
+            accumulated_frames: 1,
             radiance: &data.radiance,
             mask: &mask,
             gbuffer: &data.gbuffer,
@@ -106,6 +107,7 @@ pub fn convergence(
         let out = r.reconstruct(&FrameInputs {
             frame,
             state_version: 1,
+            accumulated_frames: k as u32 + 1,
             radiance: &data.radiance,
             mask: &mask,
             gbuffer: &data.gbuffer,

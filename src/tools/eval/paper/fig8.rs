@@ -157,7 +157,11 @@ fn gold_standard(prepared: &Prepared, frames: u32) -> anyhow::Result<Vec<Vec3>> 
             current: f.iter().map(|&p| decode_rgb9e5(p)).collect(),
             current_mask: vec![true; f.len()],
             owners: Default::default(),
-            stats: Default::default(),
+            // Every frame accumulates, as the frame assembler counts a static view's.
+            stats: gridlight_actors::stats::FrameStats {
+                accumulated_frames: i as u32 + 1,
+                ..Default::default()
+            },
         };
         last = composer.compose(&frame, View::Final)?.linear.unwrap_or_default();
     }
