@@ -95,7 +95,7 @@ fn built_in_scenes_agree_with_the_cpu_in_mean_radiance_and_flip() {
         let (w, h) = (64, 48);
         let scene = builtin(name, w, h, 64);
         let cpu = cpu_image(&scene, 0, Strategy::NeeMis);
-        let gpu = gpu_image(&t, &scene, 0, Strategy::NeeMis);
+        let gpu = gpu_image(t, &scene, 0, Strategy::NeeMis);
         let (mc, mg) = (mean(&cpu), mean(&gpu));
         let rel = ((mg - mc) / mc).abs().max_element();
         eprintln!("{name}: CPU mean {mc:.5}, GPU mean {mg:.5} ({:.3} %)", rel * 100.0);
@@ -132,7 +132,7 @@ fn gpu_white_furnaces_keep_energy() {
         let m = material("m", MaterialKind::Diffuse, Vec3::splat(albedo), 1.0);
         let (assets, state) = furnace(m, Vec3::splat(0.8), 8, 16);
         let scene = RenderScene::new(assets, &state).unwrap();
-        let (mean, n) = mean_on_object(&scene, &gpu_image(&t, &scene, 0, Strategy::NeeMis));
+        let (mean, n) = mean_on_object(&scene, &gpu_image(t, &scene, 0, Strategy::NeeMis));
         assert!(n > 20, "the sphere covers too few pixels ({n})");
         let expected = albedo * 0.8;
         assert!(
@@ -150,7 +150,7 @@ fn gpu_white_furnaces_keep_energy() {
         let m = material("m", kind, Vec3::ONE, roughness);
         let (assets, state) = furnace(m, Vec3::ONE, spp, spp.max(16));
         let scene = RenderScene::new(assets, &state).unwrap();
-        let (mean, _) = mean_on_object(&scene, &gpu_image(&t, &scene, 0, Strategy::NeeMis));
+        let (mean, _) = mean_on_object(&scene, &gpu_image(t, &scene, 0, Strategy::NeeMis));
         assert!(mean.max_element() < hi && mean.min_element() > lo, "{kind:?} {roughness}: {mean}");
     }
 }
@@ -176,7 +176,7 @@ fn gpu_closed_furnace_has_the_known_answer_with_nee_and_with_bsdf_sampling() {
     let scene = RenderScene::new(Arc::new(assets), &state).unwrap();
     let expected = 1.0 - 0.5f64.powi(6);
     for strategy in [Strategy::NeeMis, Strategy::BsdfOnly] {
-        let m = mean(&gpu_image(&t, &scene, 0, strategy));
+        let m = mean(&gpu_image(t, &scene, 0, strategy));
         assert!((m - DVec3::splat(expected)).abs().max_element() < 0.01, "{strategy:?}: {m}");
     }
 }
@@ -187,8 +187,8 @@ fn gpu_nee_and_bsdf_sampling_agree_on_the_cornell_box() {
     let (assets, mut state) = cornell_box(24, 18);
     state.render.spp = 256;
     let scene = RenderScene::new(assets, &state).unwrap();
-    let nee = mean(&gpu_image(&t, &scene, 1, Strategy::NeeMis));
-    let bsdf = mean(&gpu_image(&t, &scene, 1, Strategy::BsdfOnly));
+    let nee = mean(&gpu_image(t, &scene, 1, Strategy::NeeMis));
+    let bsdf = mean(&gpu_image(t, &scene, 1, Strategy::BsdfOnly));
     let rel = ((nee - bsdf) / nee).abs();
     assert!(rel.max_element() < 0.03, "NEE {nee} vs BSDF {bsdf}");
     assert!(nee.min_element() > 0.02, "the box is too dark: {nee}");

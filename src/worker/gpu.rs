@@ -138,7 +138,7 @@ fn run(tracer: GpuTracer, rx: std_mpsc::Receiver<Queued>) {
                 Err(_) => break,
             }
         }
-        batch.retain(|q| live(q));
+        batch.retain(live);
         while !batch.is_empty() {
             // One scene state per dispatch, the first job's; the others wait their turn.
             let version = batch[0].job.state.version;
