@@ -37,7 +37,9 @@ use crate::scene::state::{SceneState, StateVersion};
 use crate::scene_holder::{ApplyEdit, CurrentState, EditMade, PlayScript, SceneHolder};
 use crate::scheduler::sets::SetTable;
 use crate::scheduler::{PacingChanged, Scheduler, SchedulerLinks};
-use crate::supervision::{InjectPanic, RestartPolicy};
+use crate::supervision::{
+    InjectPanic, PanicInjection, PanicPlan, PeerPolicy, RestartPolicy, Supervised, Supervision,
+};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
 
@@ -45,6 +47,7 @@ pub use crate::assembler::wait_heuristic::{Heuristic, Pacing, PacingError};
 pub use crate::presenter::sink::{ShownFrame, SinkError};
 pub use crate::presenter::stats::FrameStats;
 pub use crate::presenter::ReportState as MasterReport;
+pub use crate::supervision::ActorKind;
 
 /// Default number of jobs a worker may hold (DESIGN.md decision 7).
 pub const DEFAULT_PIPELINE: u32 = 2;
@@ -71,7 +74,12 @@ pub struct MasterConfig {
     pub heartbeat: Duration,
     pub peer_timeout: Duration,
     pub initial_frame_time: Duration,
+    /// Each core actor's restart intensity and back-off.
     pub restart: RestartPolicy,
+    /// When a worker whose connections keep failing is refused, and for how long.
+    pub peer_backoff: PeerPolicy,
+    /// Panics injected by the guard (a test hook: `gridlight master --inject-panic`).
+    pub inject_panics: Vec<PanicInjection>,
     /// Announce this master on the LAN (`discovery`); `None`: stay quiet.
     pub announce: Option<AnnounceConfig>,
     /// Frames the assembler hands to the sink ahead of it (1 for the least latency, 2 to
@@ -98,20 +106,13 @@ impl MasterConfig {
             peer_timeout: PEER_TIMEOUT,
             initial_frame_time: DEFAULT_INITIAL_FRAME_TIME,
             restart: RestartPolicy::default(),
+            peer_backoff: PeerPolicy::default(),
+            inject_panics: Vec::new(),
             announce: None,
             discard_stale_jobs: true,
             sink_in_flight: crate::presenter::DEFAULT_SINK_IN_FLIGHT,
         }
     }
-}
-
-/// The actors a test can inject a panic into.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ActorKind {
-    Scheduler,
-    Assembler,
-    Presenter,
-    SceneHolder,
 }
 
 /// Errors of the handle's requests.
@@ -135,6 +136,8 @@ pub struct MasterHandle {
     scheduler: Addr<Scheduler>,
     assembler: Addr<Assembler>,
     presenter: Addr<Presenter>,
+    /// When the master announces itself.
+    announcer: Option<Addr<Announcer>>,
     report: Arc<Report>,
     counters: Arc<Counters>,
     /// The connected workers (`workers()`).
@@ -166,6 +169,8 @@ pub fn start(
     } else {
         tracing::info!(listen = %local_addr, "workers must prove the shared secret");
     }
+    let counters = Arc::new(Counters::default());
+    let faults = Arc::new(PanicPlan::new(&config.inject_panics));
     let announcer = match &config.announce {
         Some(a) => {
             let what = Announcement::new(
@@ -175,12 +180,13 @@ pub fn start(
                 &a.scene,
                 config.secret.is_some(),
             );
-            Some(Announcer::new(a, &what)?)
+            let supervision =
+                Supervision::restarting(ActorKind::Announcer, config.restart, counters.clone());
+            Some(Announcer::new(a, &what, supervision)?.with_faults(faults.clone()))
         }
         None => None,
     };
     let report = Arc::new(Report::default());
-    let counters = Arc::new(Counters::default());
     let workers = Arc::new(WorkerTable::default());
     let (tx, rx) = std::sync::mpsc::channel();
     let (r, c, w) = (report.clone(), counters.clone(), workers.clone());
@@ -188,9 +194,9 @@ pub fn start(
     let thread = std::thread::Builder::new().name("gridlight-master".into()).spawn(move || {
         let system = System::new();
         let wired = system.block_on(async move {
-            let actors = wire(config, state, assets, sink, sets, socket, r, c, w);
-            if let (Ok(_), Some(a)) = (&actors, announcer) {
-                a.start();
+            let mut actors = wire(config, state, assets, sink, sets, socket, r, c, w, faults);
+            if let (Ok(actors), Some(a)) = (&mut actors, announcer) {
+                actors.announcer = Some(a.start());
             }
             actors
         });
@@ -214,7 +220,7 @@ pub fn start(
         Ok(Err(e)) => return Err(e),
         Err(_) => return Err(std::io::Error::other("the master thread ended while starting")),
     };
-    let Actors { scene, listener, scheduler, assembler, presenter } = actors;
+    let Actors { scene, listener, scheduler, assembler, presenter, announcer } = actors;
     Ok(MasterHandle {
         local_addr,
         system,
@@ -224,6 +230,7 @@ pub fn start(
         scheduler,
         assembler,
         presenter,
+        announcer,
         report,
         counters,
         workers,
@@ -236,6 +243,7 @@ struct Actors {
     scheduler: Addr<Scheduler>,
     assembler: Addr<Assembler>,
     presenter: Addr<Presenter>,
+    announcer: Option<Addr<Announcer>>,
 }
 
 /// Creates every actor inside the running system, each after those it sends to.
@@ -250,6 +258,7 @@ fn wire(
     report: Arc<Report>,
     counters: Arc<Counters>,
     workers: Arc<WorkerTable>,
+    faults: Arc<PanicPlan>,
 ) -> std::io::Result<Actors> {
     let socket = tokio::net::TcpListener::from_std(socket)?;
     let state = Arc::new(state);
@@ -261,7 +270,9 @@ fn wire(
         sink_in_flight: config.sink_in_flight,
     };
     let presenter =
-        Presenter::new(presenter_config, sink, counters.clone(), workers.clone(), report).start();
+        Presenter::new(presenter_config, sink, counters.clone(), workers.clone(), report)
+            .with_faults(faults.clone())
+            .start();
     let assembler_config = AssemblerConfig {
         pacing: config.pacing,
         initial_frame_time: config.initial_frame_time,
@@ -275,6 +286,7 @@ fn wire(
     };
     let assembler =
         Assembler::new(sets.clone(), assembler_config, links, counters.clone(), workers.clone())
+            .with_faults(faults.clone())
             .start();
     let links = SchedulerLinks {
         frames_to: assembler.clone().recipient(),
@@ -292,9 +304,11 @@ fn wire(
         config.restart,
     )
     .with_stale_discard(config.discard_stale_jobs)
+    .with_faults(faults.clone())
     .start();
     let scene =
         SceneHolder::new(state, scheduler.clone().recipient(), counters.clone(), config.restart)
+            .with_faults(faults.clone())
             .start();
 
     let conn_config = Arc::new(ConnectionConfig {
@@ -316,8 +330,12 @@ fn wire(
         results_to: assembler.clone().recipient(),
         ended_to: listener_addr.clone().recipient(),
     };
-    listener_ctx.run(Listener::new(socket, config.max_connections, conn_config, links, counters));
-    Ok(Actors { scene, listener: listener_addr, scheduler, assembler, presenter })
+    let policy = (config.restart, config.peer_backoff);
+    let listener =
+        Listener::new(socket, config.max_connections, conn_config, links, counters, policy);
+    listener_ctx.run(listener.with_faults(faults));
+    let listener = listener_addr;
+    Ok(Actors { scene, listener, scheduler, assembler, presenter, announcer: None })
 }
 
 impl MasterHandle {
@@ -390,13 +408,25 @@ impl MasterHandle {
         block_on(self.listener.send(PanicConnection(id)))
     }
 
-    /// Fault injection: a panic inside a handler of a core actor.
+    /// Fault injection: a panic inside a handler of `actor` (of every live connection
+    /// for [`ActorKind::Connection`]; nothing for the announcer of a quiet master).
     pub fn inject_panic(&self, actor: ActorKind) {
         match actor {
             ActorKind::Scheduler => self.scheduler.do_send(InjectPanic),
             ActorKind::Assembler => self.assembler.do_send(InjectPanic),
             ActorKind::Presenter => self.presenter.do_send(InjectPanic),
             ActorKind::SceneHolder => self.scene.do_send(InjectPanic),
+            ActorKind::Listener => self.listener.do_send(InjectPanic),
+            ActorKind::Announcer => {
+                if let Some(a) = &self.announcer {
+                    a.do_send(InjectPanic);
+                }
+            }
+            ActorKind::Connection => {
+                for id in self.connections().unwrap_or_default() {
+                    self.listener.do_send(PanicConnection(id));
+                }
+            }
         }
     }
 

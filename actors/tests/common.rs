@@ -156,13 +156,17 @@ impl Peer {
         }
     }
 
-    /// Hello + Auth; returns the Welcome's worker id or the rejection.
+    /// Hello + Auth; returns the Welcome's worker id or the rejection. Each scripted peer
+    /// is a worker of its own (named after its port): the master's per-peer back-off
+    /// must not take the bad peers of a case table for one crash-looping worker.
     pub fn handshake(&mut self, secret: Option<&[u8]>) -> Result<u64, String> {
-        self.send(&WorkerMsg::Hello {
-            protocol: PROTOCOL_VERSION,
-            name: "test-peer".into(),
-            cores: 1,
-        });
+        let name = format!("test-peer-{}", self.local_addr().port());
+        self.handshake_as(&name, secret)
+    }
+
+    /// [`Peer::handshake`] under the worker name `name` (the master's per-peer key).
+    pub fn handshake_as(&mut self, name: &str, secret: Option<&[u8]>) -> Result<u64, String> {
+        self.send(&WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: name.into(), cores: 1 });
         let nonce = match self.recv_non_heartbeat()? {
             MasterMsg::Challenge { nonce, auth_required } => {
                 // As a real worker: the secret keys result tags only when the master has one.

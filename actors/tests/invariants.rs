@@ -1,10 +1,22 @@
 //! ARCHITECTURE.md's invariants about the actors crate, each as a test that fails when
-//! the invariant breaks: "`gridlight-actors` never depends on the renderer" and "pixel
-//! indices never travel".
+//! the invariant breaks: "`gridlight-actors` never depends on the renderer", "pixel
+//! indices never travel" and "the actor thread does no pixel work".
 
+mod common;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, Sender};
+use std::sync::Arc;
+use std::time::Duration;
+
+use common::*;
+use gridlight_actors::asset_store::AssetStore;
 use gridlight_actors::codec::to_frame;
+use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::integrity::ResultKey;
+use gridlight_actors::master::{start, ShownFrame, SinkError};
 use gridlight_actors::protocol::{MasterMsg, PackedRadiance, WorkerMsg};
+use gridlight_actors::sink::{FrameSink, Preparer};
 
 /// Crates that render, open windows or drive a GPU; the actors crate names none of them.
 const RENDERER_CRATES: [&str; 8] =
@@ -46,4 +58,87 @@ fn pixel_indices_never_travel() {
         extra.abs_diff(4000) <= 8,
         "1000 more pixels cost {extra} bytes, not 4000: something besides the radiance travels"
     );
+}
+
+/// Tells the test on which thread each unpacked frame arrives, and on which thread the
+/// actors tell it about a new scene state (the control: that one is the actor thread).
+struct ThreadProbe(Sender<(&'static str, String)>);
+
+fn thread_name() -> String {
+    std::thread::current().name().unwrap_or("unnamed").to_owned()
+}
+
+impl FrameSink for ThreadProbe {
+    fn show(&mut self, frame: ShownFrame) -> Result<(), SinkError> {
+        assert_eq!(frame.current.len(), (W * H) as usize, "the sink gets unpacked pixels");
+        self.0.send(("show", thread_name())).map_err(|_| SinkError::Closed)
+    }
+
+    fn preparer(&mut self) -> Option<Preparer> {
+        let tx = self.0.clone();
+        Some(Box::new(move |_| {
+            let _ = tx.send(("prepare", thread_name()));
+        }))
+    }
+}
+
+#[test]
+fn the_actor_thread_does_no_pixel_work() {
+    // Dynamically: frames reach the sink unpacked on the sink thread, never on the
+    // actors' thread (which the preparer, called by the presenter, runs on).
+    let (tx, rx) = channel();
+    let m = start(config(), scene(), AssetStore::new(), Box::new(ThreadProbe(tx))).expect("start");
+    let stop = Arc::new(AtomicBool::new(false));
+    let worker = {
+        let (addr, stop) = (m.local_addr(), stop.clone());
+        std::thread::spawn(move || {
+            let table = table();
+            let mut p = Peer::connect(addr);
+            p.handshake(None).expect("handshake");
+            p.send(&WorkerMsg::Ready { credits: 2 });
+            while !stop.load(Ordering::Relaxed) {
+                let Ok((frame, set, version, _)) = p.next_job() else { break };
+                if !p.answer(&table, frame, set, version, frame_value(frame))
+                    || !p.try_send(&WorkerMsg::Ready { credits: 1 })
+                {
+                    break;
+                }
+            }
+        })
+    };
+    assert!(m.wait_for_frames(2, Duration::from_secs(20)), "no frames");
+    let moved = Edit::Camera(CameraEdit { look_at: Some(glam::Vec3::X), ..Default::default() });
+    m.edit(moved).expect("edit");
+    let seen = m.report().shown;
+    assert!(m.wait_for_frames(seen + 2, Duration::from_secs(20)), "no frames after the edit");
+    stop.store(true, Ordering::Relaxed);
+    drop(m);
+    let _ = worker.join();
+    let calls: Vec<_> = rx.try_iter().collect();
+    let on = |what| calls.iter().filter(move |(w, _)| *w == what).map(|(_, t)| t.as_str());
+    assert!(
+        on("prepare").count() >= 1 && on("prepare").all(|t| t == "gridlight-master"),
+        "{calls:?}"
+    );
+    assert!(on("show").count() >= 4 && on("show").all(|t| t == "gridlight-sink"), "{calls:?}");
+
+    // Statically: outside their tests, only the sink thread's loop (`presenter/sink.rs`)
+    // unpacks a frame, and no actor decodes a result's pixels (`packing::unpack`).
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/src");
+    let mut unpackers = Vec::new();
+    let mut dirs = vec![std::path::PathBuf::from(src)];
+    while let Some(dir) = dirs.pop() {
+        for path in std::fs::read_dir(&dir).expect("src").flatten().map(|e| e.path()) {
+            if path.is_dir() {
+                dirs.push(path);
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).expect("source");
+            let code = text.split("#[cfg(test)]").next().unwrap_or_default();
+            if code.contains(".unpack(") || code.contains("packing::unpack") {
+                unpackers.push(path.strip_prefix(src).expect("under src").display().to_string());
+            }
+        }
+    }
+    assert_eq!(unpackers, ["presenter/sink.rs"]);
 }

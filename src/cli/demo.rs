@@ -103,6 +103,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         frames: if windowed { args.frames } else { Some(args.frames.unwrap_or(DEFAULT_FRAMES)) },
         keep_stale_jobs: args.keep_stale_jobs,
         sink_in_flight: args.sink_in_flight,
+        inject_panics: Vec::new(),
         headless: HeadlessOptions {
             out_dir: Some(args.out.clone()),
             stats: Some(args.out.join("stats.jsonl")),

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use gridlight_actors::protocol::{Partition, SetsConfig};
+use gridlight_actors::supervision::PanicInjection;
 
 use super::GlobalArgs;
 use crate::gpu::Backend;
@@ -196,6 +197,11 @@ pub struct Args {
     /// Also write each frame's own unfiltered results as EXR (process tests).
     #[arg(long, hide = true)]
     pub dump_current: bool,
+    /// Test hook (supervision tests): the guard makes ACTOR (scheduler, assembler,
+    /// presenter, scene-holder, listener, connection, announcer) panic at SITE (started,
+    /// handler or timer; default started), COUNT times or every time. Repeatable.
+    #[arg(long, value_name = "ACTOR[:SITE[:COUNT]]", hide = true)]
+    pub inject_panic: Vec<PanicInjection>,
 }
 
 impl Args {
@@ -222,6 +228,7 @@ impl Args {
             frames: self.frames,
             keep_stale_jobs: false,
             sink_in_flight: 1,
+            inject_panics: self.inject_panic.clone(),
             headless: HeadlessOptions {
                 out_dir: self.out.clone(),
                 stats: self.stats.clone(),

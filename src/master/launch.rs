@@ -21,6 +21,7 @@ use gridlight_actors::asset_store::AssetStore;
 use gridlight_actors::discovery;
 use gridlight_actors::master::{self, MasterConfig, MasterReport};
 use gridlight_actors::protocol::SetsConfig;
+use gridlight_actors::supervision::PanicInjection;
 use tracing::{info, warn};
 
 use crate::assets::Assets;
@@ -61,6 +62,8 @@ pub struct MasterOptions {
     pub keep_stale_jobs: bool,
     /// Frames handed to the sink ahead of it (1 by default for `master` and `demo`).
     pub sink_in_flight: usize,
+    /// Panics the supervision guard injects (a test hook: `--inject-panic`).
+    pub inject_panics: Vec<PanicInjection>,
     pub headless: HeadlessOptions,
 }
 
@@ -136,6 +139,7 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     // A person watches these frames: the newest view decided when the sink is free beats
     // a frame decided earlier and queued behind another (edit-to-display latency).
     config.sink_in_flight = opts.sink_in_flight;
+    config.inject_panics = opts.inject_panics.clone();
     Ok(Prepared { config, state: loaded.state, store, assets: Arc::new(loaded.assets), params })
 }
 

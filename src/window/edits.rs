@@ -1,9 +1,18 @@
-//! The window's scene edits: absolute new values for one part of the scene state, as the
+//! The window's edits: absolute new values for one part of the scene state, as the
 //! controls and the panel produce them, and how they apply to the window's copy of the state.
 //!
 //! The window keeps its own copy of the scene state so that successive drags compose at
 //! once, without waiting for the master to echo a new version; each edit also goes to the
 //! master, which makes the new state version the workers render.
+//!
+//! A [`WindowEdit`] is not the master's `gridlight_actors::edit::Edit`, and the names
+//! say so: a window edit replaces a whole part (a camera, a transform, a material)
+//! addressed by its index in the window's own copy, and is checked for that index
+//! only; an `Edit` is the one vocabulary the master,
+//! interaction scripts and tests speak — only the fields it changes, objects and
+//! materials by name, values checked before the state changes. The window turns each of
+//! its edits into an `Edit` (`window::session::to_master_edit`); [`WindowEditError`] is
+//! only "that index is not in my copy", `EditError` the master's refusal.
 
 use std::time::Instant;
 
@@ -13,9 +22,10 @@ use gridlight_actors::state::{
 };
 use thiserror::Error;
 
-/// One change to the scene state, as an absolute value for the part it names.
+/// One change to the window's copy of the scene state, as an absolute value for the part
+/// it names by index (the master's counterpart is `Edit`; see the module doc).
 #[derive(Clone, Debug, PartialEq)]
-pub enum SceneEdit {
+pub enum WindowEdit {
     Camera(Camera),
     /// New transform of object `object` (index into `SceneState::objects`).
     ObjectTransform {
@@ -33,9 +43,9 @@ pub enum SceneEdit {
     Environment(Option<Environment>),
 }
 
-/// An edit that names something the state does not have.
+/// A window edit that names an index the window's copy does not have.
 #[derive(Debug, Error, PartialEq)]
-pub enum EditError {
+pub enum WindowEditError {
     #[error("no object {0} in the scene")]
     NoObject(u32),
     #[error("no material {0} in the scene")]
@@ -44,27 +54,33 @@ pub enum EditError {
     NoLight(u32),
 }
 
-impl SceneEdit {
+impl WindowEdit {
     /// Applies the edit to `state` (the version is the master's business and stays).
-    pub fn apply(&self, state: &mut SceneState) -> Result<(), EditError> {
+    pub fn apply(&self, state: &mut SceneState) -> Result<(), WindowEditError> {
         match self {
-            SceneEdit::Camera(camera) => state.camera = *camera,
-            SceneEdit::ObjectTransform { object, transform } => {
-                let slot =
-                    state.objects.get_mut(*object as usize).ok_or(EditError::NoObject(*object))?;
+            WindowEdit::Camera(camera) => state.camera = *camera,
+            WindowEdit::ObjectTransform { object, transform } => {
+                let slot = state
+                    .objects
+                    .get_mut(*object as usize)
+                    .ok_or(WindowEditError::NoObject(*object))?;
                 slot.transform = *transform;
             }
-            SceneEdit::Material { id, material } => {
-                let slot =
-                    state.materials.get_mut(*id as usize).ok_or(EditError::NoMaterial(*id))?;
+            WindowEdit::Material { id, material } => {
+                let slot = state
+                    .materials
+                    .get_mut(*id as usize)
+                    .ok_or(WindowEditError::NoMaterial(*id))?;
                 *slot = material.clone();
             }
-            SceneEdit::Light { index, light } => {
-                let slot =
-                    state.lights.get_mut(*index as usize).ok_or(EditError::NoLight(*index))?;
+            WindowEdit::Light { index, light } => {
+                let slot = state
+                    .lights
+                    .get_mut(*index as usize)
+                    .ok_or(WindowEditError::NoLight(*index))?;
                 *slot = *light;
             }
-            SceneEdit::Environment(environment) => state.environment = environment.clone(),
+            WindowEdit::Environment(environment) => state.environment = environment.clone(),
         }
         Ok(())
     }
@@ -80,14 +96,14 @@ enum Target {
     Environment,
 }
 
-impl SceneEdit {
+impl WindowEdit {
     fn target(&self) -> Target {
         match self {
-            SceneEdit::Camera(_) => Target::Camera,
-            SceneEdit::ObjectTransform { object, .. } => Target::Object(*object),
-            SceneEdit::Material { id, .. } => Target::Material(*id),
-            SceneEdit::Light { index, .. } => Target::Light(*index),
-            SceneEdit::Environment(_) => Target::Environment,
+            WindowEdit::Camera(_) => Target::Camera,
+            WindowEdit::ObjectTransform { object, .. } => Target::Object(*object),
+            WindowEdit::Material { id, .. } => Target::Material(*id),
+            WindowEdit::Light { index, .. } => Target::Light(*index),
+            WindowEdit::Environment(_) => Target::Environment,
         }
     }
 }
@@ -99,13 +115,13 @@ impl SceneEdit {
 /// latency counts from there.
 #[derive(Clone, Debug, Default)]
 pub struct EditQueue {
-    pending: Vec<(SceneEdit, Instant)>,
+    pending: Vec<(WindowEdit, Instant)>,
 }
 
 impl EditQueue {
     /// Queues `edit` made at `at`, replacing a queued edit of the same target in place
     /// (which keeps its earlier instant).
-    pub fn push(&mut self, edit: SceneEdit, at: Instant) {
+    pub fn push(&mut self, edit: WindowEdit, at: Instant) {
         match self.pending.iter_mut().find(|(e, _)| e.target() == edit.target()) {
             Some((queued, _)) => *queued = edit,
             None => self.pending.push((edit, at)),
@@ -114,7 +130,7 @@ impl EditQueue {
 
     /// Takes the queued edits with their first input instants, in the order their
     /// targets were first edited.
-    pub fn drain(&mut self) -> Vec<(SceneEdit, Instant)> {
+    pub fn drain(&mut self) -> Vec<(WindowEdit, Instant)> {
         std::mem::take(&mut self.pending)
     }
 
@@ -164,17 +180,19 @@ mod tests {
     fn edits_replace_the_named_part_only() {
         let mut s = state();
         let moved = Transform { translation: Vec3::X, ..Transform::default() };
-        SceneEdit::ObjectTransform { object: 0, transform: moved }.apply(&mut s).expect("object 0");
+        WindowEdit::ObjectTransform { object: 0, transform: moved }
+            .apply(&mut s)
+            .expect("object 0");
         assert_eq!(s.objects[0].transform, moved);
         let mut glass = s.materials[0].clone();
         glass.kind = MaterialKind::Dielectric;
-        SceneEdit::Material { id: 0, material: glass.clone() }.apply(&mut s).expect("material 0");
+        WindowEdit::Material { id: 0, material: glass.clone() }.apply(&mut s).expect("material 0");
         assert_eq!(s.materials[0], glass);
         let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
-        SceneEdit::Light { index: 0, light }.apply(&mut s).expect("light 0");
+        WindowEdit::Light { index: 0, light }.apply(&mut s).expect("light 0");
         assert_eq!(s.lights[0], light);
         let cam = Camera { vfov_deg: 60.0, ..s.camera };
-        SceneEdit::Camera(cam).apply(&mut s).expect("camera");
+        WindowEdit::Camera(cam).apply(&mut s).expect("camera");
         assert_eq!(s.camera, cam);
         assert_eq!(s.version, 3, "only the master bumps versions");
         assert_eq!(s.objects[0].name, "box");
@@ -186,30 +204,33 @@ mod tests {
         let before = s.clone();
         let t = Transform::default();
         assert_eq!(
-            SceneEdit::ObjectTransform { object: 5, transform: t }.apply(&mut s),
-            Err(EditError::NoObject(5))
+            WindowEdit::ObjectTransform { object: 5, transform: t }.apply(&mut s),
+            Err(WindowEditError::NoObject(5))
         );
         let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
-        assert_eq!(SceneEdit::Light { index: 1, light }.apply(&mut s), Err(EditError::NoLight(1)));
+        assert_eq!(
+            WindowEdit::Light { index: 1, light }.apply(&mut s),
+            Err(WindowEditError::NoLight(1))
+        );
         assert_eq!(s, before);
     }
 
     #[test]
     fn queue_keeps_the_newest_edit_per_target_in_first_edit_order() {
-        let cam = |fov| SceneEdit::Camera(Camera { vfov_deg: fov, ..state().camera });
+        let cam = |fov| WindowEdit::Camera(Camera { vfov_deg: fov, ..state().camera });
         let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
         let mut q = EditQueue::default();
         let t0 = Instant::now();
         let t = |ms| t0 + std::time::Duration::from_millis(ms);
         q.push(cam(30.0), t(0));
-        q.push(SceneEdit::Light { index: 0, light }, t(1));
+        q.push(WindowEdit::Light { index: 0, light }, t(1));
         q.push(cam(50.0), t(2));
-        q.push(SceneEdit::Light { index: 1, light }, t(3));
+        q.push(WindowEdit::Light { index: 1, light }, t(3));
         let drained = q.drain();
         assert_eq!(drained.len(), 3);
         // The newest camera, timed from the first camera input it replaced.
         assert_eq!(drained[0], (cam(50.0), t(0)));
-        assert_eq!(drained[1], (SceneEdit::Light { index: 0, light }, t(1)));
+        assert_eq!(drained[1], (WindowEdit::Light { index: 0, light }, t(1)));
         assert!(q.is_empty());
     }
 

@@ -46,7 +46,7 @@ pub mod session;
 pub mod status;
 
 use crate::master::view::View;
-use edits::SceneEdit;
+use edits::WindowEdit;
 use latest::Latest;
 use panel::PacingChoice;
 use picture::Picture;
@@ -83,7 +83,7 @@ pub trait Session {
     fn pacing(&self) -> PacingChoice;
     /// Sends an edit made at `at` (its input event); the master makes a new scene state
     /// from it.
-    fn edit(&mut self, edit: SceneEdit, at: std::time::Instant);
+    fn edit(&mut self, edit: WindowEdit, at: std::time::Instant);
     /// Changes how the master paces frames.
     fn set_pacing(&mut self, pacing: PacingChoice);
     /// Chooses the view the next composed frames show.
@@ -94,7 +94,7 @@ pub trait Session {
     /// Adds what the session knows beyond the last frame's statistics (workers, …).
     fn refresh_status(&mut self, status: &mut StatusView);
     /// Saves recorded edits as an interaction script; returns its path.
-    fn save_script(&self, entries: &[(Duration, SceneEdit)]) -> Result<PathBuf, String>;
+    fn save_script(&self, entries: &[(Duration, WindowEdit)]) -> Result<PathBuf, String>;
     /// Stops the master and its local workers; returns once they are told to stop.
     fn shutdown(&mut self);
 }

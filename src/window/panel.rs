@@ -9,7 +9,7 @@ use glam::Vec3;
 use gridlight_actors::state::{Environment, Light, MaterialKind, SceneState};
 
 use super::camera::CameraMode;
-use super::edits::{join_power, split_power, SceneEdit};
+use super::edits::{join_power, split_power, WindowEdit};
 use super::status::{human_bytes, StatusView};
 use crate::master::view::View;
 use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
@@ -92,7 +92,7 @@ pub struct PanelModel<'a> {
 /// Something the user did in the panel.
 #[derive(Clone, Debug, PartialEq)]
 pub enum PanelAction {
-    Edit(SceneEdit),
+    Edit(WindowEdit),
     Pacing(PacingChoice),
     ResetCamera,
     Deselect,
@@ -328,7 +328,7 @@ fn selection_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<Pa
         vec3_drag(ui, &mut transform.translation, 0.01);
     });
     if transform != object.transform {
-        actions.push(PanelAction::Edit(SceneEdit::ObjectTransform { object: index, transform }));
+        actions.push(PanelAction::Edit(WindowEdit::ObjectTransform { object: index, transform }));
     }
     let mut seen = Vec::new();
     for &id in &object.materials {
@@ -369,7 +369,7 @@ fn selection_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<Pa
             m.emission = join_power(colour, strength);
         });
         if &m != material {
-            actions.push(PanelAction::Edit(SceneEdit::Material { id, material: m }));
+            actions.push(PanelAction::Edit(WindowEdit::Material { id, material: m }));
         }
     }
 }
@@ -383,7 +383,7 @@ fn lights_section(ui: &mut egui::Ui, scene: &SceneState, actions: &mut Vec<Panel
         let mut l = *light;
         ui.collapsing(format!("{} {index}", light_label(light)), |ui| light_editor(ui, &mut l));
         if l != *light {
-            actions.push(PanelAction::Edit(SceneEdit::Light { index: index as u32, light: l }));
+            actions.push(PanelAction::Edit(WindowEdit::Light { index: index as u32, light: l }));
         }
     }
 }
@@ -457,7 +457,7 @@ fn environment_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<
         ui.add(egui::Slider::new(&mut e.rotation_deg, 0.0..=360.0).text("rotation °"));
     }
     if env != before {
-        actions.push(PanelAction::Edit(SceneEdit::Environment(env)));
+        actions.push(PanelAction::Edit(WindowEdit::Environment(env)));
     }
 }
 

@@ -3,13 +3,13 @@
 
 use std::time::{Duration, Instant};
 
-use super::edits::SceneEdit;
+use super::edits::WindowEdit;
 
 /// Edits made while recording, each with its time since recording started.
 #[derive(Clone, Debug, Default)]
 pub struct Recorder {
     started: Option<Instant>,
-    entries: Vec<(Duration, SceneEdit)>,
+    entries: Vec<(Duration, WindowEdit)>,
 }
 
 impl Recorder {
@@ -30,14 +30,14 @@ impl Recorder {
     }
 
     /// Records `edit` made at `now`, if recording.
-    pub fn record(&mut self, edit: &SceneEdit, now: Instant) {
+    pub fn record(&mut self, edit: &WindowEdit, now: Instant) {
         if let Some(start) = self.started {
             self.entries.push((now.saturating_duration_since(start), edit.clone()));
         }
     }
 
     /// The recorded edits in order.
-    pub fn entries(&self) -> &[(Duration, SceneEdit)] {
+    pub fn entries(&self) -> &[(Duration, WindowEdit)] {
         &self.entries
     }
 }
@@ -50,7 +50,7 @@ mod tests {
     #[test]
     fn records_only_while_on_with_times_from_the_start() {
         let t0 = Instant::now();
-        let edit = SceneEdit::Environment(None);
+        let edit = WindowEdit::Environment(None);
         let mut r = Recorder::default();
         r.record(&edit, t0);
         assert!(r.entries().is_empty(), "not recording yet");
@@ -58,7 +58,7 @@ mod tests {
         r.record(&edit, t0 + Duration::from_millis(250));
         r.set_recording(false, t0 + Duration::from_secs(1));
         r.record(&edit, t0 + Duration::from_secs(2));
-        let env = SceneEdit::Environment(Some(Environment {
+        let env = WindowEdit::Environment(Some(Environment {
             map: None,
             color: glam::Vec3::ONE,
             intensity: 1.0,

@@ -20,7 +20,7 @@ use gridlight_actors::state::SceneState;
 use serde::Serialize;
 use winit::event_loop::EventLoopProxy;
 
-use super::edits::SceneEdit;
+use super::edits::WindowEdit;
 use super::latest::Latest;
 use super::panel::PacingChoice;
 use super::picture::Picture;
@@ -108,9 +108,9 @@ fn status_of(frame: &ShownFrame, reconstructor: String) -> StatusView {
 }
 
 /// The window's edit as the master's [`Edit`] (absolute values for every field).
-pub fn to_master_edit(edit: &SceneEdit, state: &SceneState) -> Option<Edit> {
+pub fn to_master_edit(edit: &WindowEdit, state: &SceneState) -> Option<Edit> {
     Some(match edit {
-        SceneEdit::Camera(c) => Edit::Camera(CameraEdit {
+        WindowEdit::Camera(c) => Edit::Camera(CameraEdit {
             position: Some(c.position),
             look_at: Some(c.look_at),
             up: Some(c.up),
@@ -118,7 +118,7 @@ pub fn to_master_edit(edit: &SceneEdit, state: &SceneState) -> Option<Edit> {
             aperture: Some(c.aperture),
             focus_distance: Some(c.focus_distance),
         }),
-        SceneEdit::ObjectTransform { object, transform } => Edit::Object(ObjectEdit {
+        WindowEdit::ObjectTransform { object, transform } => Edit::Object(ObjectEdit {
             name: state.objects.get(*object as usize)?.name.clone(),
             translation: Some(transform.translation),
             rotation: Some(transform.rotation),
@@ -126,7 +126,7 @@ pub fn to_master_edit(edit: &SceneEdit, state: &SceneState) -> Option<Edit> {
             scale: Some(transform.scale),
             visible: None,
         }),
-        SceneEdit::Material { id, material } => Edit::Material(MaterialEdit {
+        WindowEdit::Material { id, material } => Edit::Material(MaterialEdit {
             name: state.materials.get(*id as usize)?.name.clone(),
             kind: Some(material.kind),
             base_color: Some(material.base_color),
@@ -134,9 +134,9 @@ pub fn to_master_edit(edit: &SceneEdit, state: &SceneState) -> Option<Edit> {
             ior: Some(material.ior),
             emission: Some(material.emission),
         }),
-        SceneEdit::Light { index, light } => Edit::Light { index: *index as usize, light: *light },
-        SceneEdit::Environment(None) => Edit::ClearEnvironment,
-        SceneEdit::Environment(Some(e)) => Edit::Environment(EnvironmentEdit {
+        WindowEdit::Light { index, light } => Edit::Light { index: *index as usize, light: *light },
+        WindowEdit::Environment(None) => Edit::ClearEnvironment,
+        WindowEdit::Environment(Some(e)) => Edit::Environment(EnvironmentEdit {
             map: e.map.clone(),
             color: Some(e.color),
             intensity: Some(e.intensity),
@@ -238,7 +238,7 @@ impl Session for MasterSession {
         self.pacing
     }
 
-    fn edit(&mut self, edit: SceneEdit, at: std::time::Instant) {
+    fn edit(&mut self, edit: WindowEdit, at: std::time::Instant) {
         let Some(master_edit) = to_master_edit(&edit, &self.state) else { return };
         if edit.apply(&mut self.state).is_err() {
             return;
@@ -292,7 +292,7 @@ impl Session for MasterSession {
         }
     }
 
-    fn save_script(&self, entries: &[(Duration, SceneEdit)]) -> Result<PathBuf, String> {
+    fn save_script(&self, entries: &[(Duration, WindowEdit)]) -> Result<PathBuf, String> {
         let mut state = self.initial.clone();
         let mut edits = Vec::new();
         for (at, e) in entries {
@@ -394,10 +394,10 @@ mod tests {
         let resolution = gridlight_actors::state::Resolution { width: 4, height: 4 };
         let state = SceneState { lights: vec![light], ..SceneState::empty(resolution, camera) };
         let edits: Vec<(Duration, Edit)> = [
-            SceneEdit::Camera(camera),
-            SceneEdit::Environment(Some(env)),
-            SceneEdit::Light { index: 0, light },
-            SceneEdit::Environment(None),
+            WindowEdit::Camera(camera),
+            WindowEdit::Environment(Some(env)),
+            WindowEdit::Light { index: 0, light },
+            WindowEdit::Environment(None),
         ]
         .iter()
         .enumerate()

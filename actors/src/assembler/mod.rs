@@ -32,7 +32,9 @@ use crate::presenter::{FrameShown, FrameSkipped, PrepareState};
 use crate::scene::state::SceneState;
 use crate::scheduler::sets::SetTable;
 use crate::scheduler::FrameDisplayed;
-use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{
+    ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
+};
 use crate::wire::protocol::{ConnId, FrameNo, JobResult};
 
 /// To the assembler: all sets of `frame` were queued with `state`. `displayed_to` is where
@@ -128,7 +130,7 @@ pub struct Assembler {
     counters: Arc<Counters>,
     /// Late results are counted per worker too (the status panel).
     workers: Arc<WorkerTable>,
-    restarts: RestartTracker,
+    supervision: Supervision,
 }
 
 impl Assembler {
@@ -148,15 +150,41 @@ impl Assembler {
             max_sink_in_flight: config.sink_in_flight.max(1),
             links,
             displayed_to: None,
+            supervision: Supervision::restarting(
+                ActorKind::Assembler,
+                config.policy,
+                counters.clone(),
+            ),
             counters,
             workers,
-            restarts: RestartTracker::new(config.policy),
         }
     }
 }
 
 impl Actor for Assembler {
     type Context = Context<Self>;
+
+    fn started(&mut self, ctx: &mut Context<Self>) {
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for Assembler {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    /// Decides on the oldest frame (after a restart: the frames the fresh table lost are
+    /// skipped).
+    fn on_start(&mut self, ctx: &mut Context<Self>) {
+        self.evaluate(ctx);
+    }
+
+    /// A fresh table: frames in flight are lost (and will be skipped), displayed frames
+    /// stay refused.
+    fn restart(&mut self, _: &mut Context<Self>) {
+        self.table = self.table.restarted();
+    }
 }
 
 impl Handler<FrameScheduled> for Assembler {
@@ -246,8 +274,10 @@ impl Handler<SetPacing> for Assembler {
 impl Handler<SinkFreed> for Assembler {
     type Result = ();
     fn handle(&mut self, _: SinkFreed, ctx: &mut Context<Self>) {
-        self.sink_in_flight = self.sink_in_flight.saturating_sub(1);
-        self.evaluate_guarded(ctx);
+        self.guarded(ctx, |a, ctx| {
+            a.sink_in_flight = a.sink_in_flight.saturating_sub(1);
+            a.evaluate(ctx);
+        });
     }
 }
 
@@ -275,9 +305,9 @@ impl Assembler {
             match j.decision {
                 Decision::Wait { recheck_at } => {
                     let wait = recheck_at.saturating_sub(j.elapsed).max(Duration::from_micros(100));
-                    self.timer = Some(ctx.run_later(wait, |a, ctx| {
+                    self.timer = Some(ctx.run_later_guarded(wait, |a, ctx| {
                         a.timer = None;
-                        a.evaluate_guarded(ctx);
+                        a.evaluate(ctx);
                     }));
                     return;
                 }
@@ -285,11 +315,6 @@ impl Assembler {
                 Decision::Skip => self.display(frame, false, &j, now, ctx),
             }
         }
-    }
-
-    /// [`Assembler::evaluate`] outside a handler (timers, after a restart), contained.
-    fn evaluate_guarded(&mut self, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |a, ctx| a.evaluate(ctx));
     }
 
     /// Takes `frame` out of the table, pushes it to the presenter (shown or skipped) and
@@ -322,18 +347,6 @@ impl Assembler {
             let (back, total) = (closed.back, closed.total);
             tracing::debug!(frame, back, total, "frame skipped");
             self.links.skipped_to.do_send(FrameSkipped { frame, back });
-        }
-    }
-
-    /// Runs a handler body; a panic restarts the table (frames in flight are lost and
-    /// will be skipped, displayed frames stay refused) after the policy's back-off.
-    fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self, &mut Context<Self>)) {
-        if let Err(msg) = contain(|| f(self, ctx)) {
-            let counters = self.counters.clone();
-            if after_panic("frame assembler", &msg, &mut self.restarts, &counters, ctx) {
-                self.table = self.table.restarted();
-                ctx.run_later(Duration::ZERO, |a, ctx| a.evaluate_guarded(ctx));
-            }
         }
     }
 }

@@ -8,12 +8,16 @@
 //! keeping the worker table and the counters, and closing after a
 //! `Rejected` that names the problem. Any protocol violation ends this connection only;
 //! every log line names the peer. The jobs it held are never handed out again.
+//!
+//! Every body runs under the supervision guard; a panic ends the connection with
+//! `Rejected` (internal error), and its supervisor, the listener, serves the worker's
+//! reconnection with a fresh actor unless the worker is backed off.
 
 pub mod session;
 pub mod workers;
 
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use actix::io::{FramedWrite, WriteHandler};
@@ -27,7 +31,9 @@ use crate::scene::asset_store::AssetStore;
 use crate::scheduler::job_queue::Job;
 use crate::scheduler::sets::SetTable;
 use crate::scheduler::{JobAnswered, WorkerLeft, WorkerReady};
-use crate::supervision::{contain, InjectPanic};
+use crate::supervision::{
+    ActorKind, Guard, GuardedTimers, InjectPanic, PeerBackoff, Supervised, Supervision,
+};
 use crate::wire::codec::{MasterCodec, ProtocolError};
 use crate::wire::counted_io::CountedWrite;
 use crate::wire::protocol::{ConnId, MasterMsg, WorkerMsg};
@@ -85,6 +91,12 @@ pub struct Connection {
     counters: Arc<Counters>,
     /// Ended on an error (the listener's per-peer policy counts these).
     failed: bool,
+    /// The listener's record of failed ends per worker, checked at `Hello`.
+    peers: Arc<Mutex<PeerBackoff>>,
+    /// The worker's name from its `Hello`, the record's key; `None` before it, and
+    /// when the record refused the worker (a refusal is not a new failure).
+    worker: Option<String>,
+    supervision: Supervision,
 }
 
 impl Connection {
@@ -95,9 +107,23 @@ impl Connection {
         config: Arc<ConnectionConfig>,
         links: ConnectionLinks,
         counters: Arc<Counters>,
+        peers: Arc<Mutex<PeerBackoff>>,
     ) -> Self {
         let session = Session::new(id, config.clone(), Instant::now());
-        Self { id, peer, session, config, links, writer, counters, failed: false }
+        let supervision = Supervision::ending(ActorKind::Connection, counters.clone());
+        Self {
+            id,
+            peer,
+            session,
+            config,
+            links,
+            writer,
+            counters,
+            failed: false,
+            peers,
+            worker: None,
+            supervision,
+        }
     }
 }
 
@@ -105,14 +131,18 @@ impl Actor for Connection {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
-        tracing::debug!(conn = self.id, peer = %self.peer, "connection opened");
-        ctx.run_interval(self.session.tick_interval(), |act, ctx| {
-            let actions = act.session.tick(Instant::now());
-            act.apply(actions, ctx);
-        });
+        self.start_guarded(ctx);
     }
 
-    fn stopped(&mut self, _: &mut Context<Self>) {
+    fn stopped(&mut self, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |c, _| c.ended());
+    }
+}
+
+impl Connection {
+    /// Tells the scheduler, the worker table and the listener that this connection is
+    /// gone; the jobs it held are lost and counted.
+    fn ended(&mut self) {
         self.links.left_to.do_send(WorkerLeft { conn: self.id });
         if self.session.welcomed() {
             let c = &self.counters;
@@ -120,14 +150,54 @@ impl Actor for Connection {
             count.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
             self.config.workers.left(self.id);
         }
-        self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed });
+        Counters::add(&self.counters.jobs_lost, self.session.held() as u64);
+        let worker = self.worker.take();
+        self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed, worker });
         tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer,
             jobs_lost = self.session.held(), "connection closed");
     }
 }
 
+impl Supervised for Connection {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    fn on_start(&mut self, ctx: &mut Context<Self>) {
+        tracing::debug!(conn = self.id, peer = %self.peer, "connection opened");
+        ctx.run_interval_guarded(self.session.tick_interval(), |act, ctx| {
+            let actions = act.session.tick(Instant::now());
+            act.apply(actions, ctx);
+        });
+    }
+
+    /// A connection's restart is its end: `Rejected` (internal error), then close; the
+    /// jobs it held are lost and counted, and the worker's reconnection is served by a
+    /// fresh actor.
+    fn restart(&mut self, ctx: &mut Context<Self>) {
+        let actions = self.session.reject(Rejection::Internal);
+        self.apply(actions, ctx);
+    }
+}
+
 impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
     fn handle(&mut self, item: Result<WorkerMsg, ProtocolError>, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |c, ctx| c.received(item, ctx));
+    }
+
+    fn finished(&mut self, ctx: &mut Context<Self>) {
+        // While closing, the writer's end stops the actor once `Rejected` is out.
+        self.guarded(ctx, |c, ctx| {
+            if !c.session.closing() {
+                ctx.stop();
+            }
+        });
+    }
+}
+
+impl Connection {
+    /// One frame from the worker (or a read error).
+    fn received(&mut self, item: Result<WorkerMsg, ProtocolError>, ctx: &mut Context<Self>) {
         if self.session.closing() {
             return;
         }
@@ -135,10 +205,11 @@ impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
             self.config.workers.heard(self.id, 0);
         }
         match item {
-            Ok(msg) => match contain(|| self.session.on_message(msg, Instant::now())) {
-                Ok(actions) => self.apply(actions, ctx),
-                Err(panic) => self.on_panic(&panic, ctx),
-            },
+            Ok(WorkerMsg::Hello { ref name, .. }) if self.backed_off(name, ctx) => {}
+            Ok(msg) => {
+                let actions = self.session.on_message(msg, Instant::now());
+                self.apply(actions, ctx);
+            }
             Err(ProtocolError::Io(e)) => {
                 tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer, cause = %e, "read failed");
                 self.counters.note_rejection(RejectionKind::Io);
@@ -152,18 +223,31 @@ impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
         }
     }
 
-    fn finished(&mut self, ctx: &mut Context<Self>) {
-        // While closing, the writer's end stops the actor once `Rejected` is out.
-        if !self.session.closing() {
-            ctx.stop();
+    /// Refuses a worker the listener's record backs off (true), else notes its name as
+    /// this connection's key in the record.
+    fn backed_off(&mut self, name: &str, ctx: &mut Context<Self>) -> bool {
+        let admitted =
+            self.peers.lock().unwrap_or_else(|p| p.into_inner()).admit(name, Instant::now());
+        match admitted {
+            Ok(()) => {
+                self.worker = Some(name.to_owned());
+                false
+            }
+            Err(why) => {
+                let actions = self.session.reject(why);
+                self.apply(actions, ctx);
+                true
+            }
         }
     }
 }
 
 impl WriteHandler<ProtocolError> for Connection {
-    fn error(&mut self, err: ProtocolError, _: &mut Context<Self>) -> Running {
-        tracing::warn!(conn = self.id, worker = %self.session.name(), peer = %self.peer, cause = %err, "write failed");
-        self.failed = true;
+    fn error(&mut self, err: ProtocolError, ctx: &mut Context<Self>) -> Running {
+        self.guarded(ctx, |c, _| {
+            tracing::warn!(conn = c.id, worker = %c.session.name(), peer = %c.peer, cause = %err, "write failed");
+            c.failed = true;
+        });
         Running::Stop
     }
 }
@@ -171,30 +255,32 @@ impl WriteHandler<ProtocolError> for Connection {
 impl Handler<JobsAssigned> for Connection {
     type Result = ();
     fn handle(&mut self, msg: JobsAssigned, ctx: &mut Context<Self>) {
-        let count = msg.0.len();
-        let actions = self.session.on_jobs(msg.0, Instant::now());
-        if actions.is_empty() && count > 0 {
-            tracing::debug!(conn = self.id, worker = %self.session.name(), jobs_lost = count, "jobs not sent");
-        }
-        self.apply(actions, ctx);
+        self.guarded(ctx, |c, ctx| {
+            let count = msg.0.len();
+            let actions = c.session.on_jobs(msg.0, Instant::now());
+            if actions.is_empty() && count > 0 {
+                tracing::debug!(conn = c.id, worker = %c.session.name(), jobs_lost = count, "jobs not sent");
+            }
+            c.apply(actions, ctx);
+        });
     }
 }
 
 impl Handler<Kill> for Connection {
     type Result = ();
     fn handle(&mut self, _: Kill, ctx: &mut Context<Self>) {
-        tracing::warn!(conn = self.id, worker = %self.session.name(), peer = %self.peer, "connection killed (fault injection)");
-        self.failed = true;
-        ctx.stop();
+        self.guarded(ctx, |c, ctx| {
+            tracing::warn!(conn = c.id, worker = %c.session.name(), peer = %c.peer, "connection killed (fault injection)");
+            c.failed = true;
+            ctx.stop();
+        });
     }
 }
 
 impl Handler<InjectPanic> for Connection {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        if let Err(panic) = contain(|| panic!("injected panic in connection {}", self.id)) {
-            self.on_panic(&panic, ctx);
-        }
+        self.guarded(ctx, |c, _| panic!("injected panic in connection {}", c.id));
     }
 }
 
@@ -265,15 +351,6 @@ impl Connection {
         self.failed = true;
         self.writer.write(MasterMsg::Rejected { reason: why.to_string() });
         self.writer.close();
-        ctx.run_later(CLOSE_GRACE, |_, ctx| ctx.stop());
-    }
-
-    /// A panic contained in a handler: this connection ends (its supervisor's restart
-    /// is the worker reconnecting); the master goes on.
-    fn on_panic(&mut self, panic: &str, ctx: &mut Context<Self>) {
-        Counters::add(&self.counters.panics_contained, 1);
-        tracing::error!(conn = self.id, worker = %self.session.name(), peer = %self.peer, cause = panic, "panic contained");
-        let actions = self.session.reject(Rejection::Internal);
-        self.apply(actions, ctx);
+        ctx.run_later_guarded(CLOSE_GRACE, |_, ctx| ctx.stop());
     }
 }

@@ -11,6 +11,7 @@ use std::time::Duration;
 use actix::prelude::*;
 
 use crate::discovery::{Announcement, DiscoveryError};
+use crate::supervision::{Guard, GuardedTimers, InjectPanic, Supervised, Supervision};
 
 /// Where and how often a master announces itself, and under which names.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -32,11 +33,18 @@ pub struct Announcer {
     interval: Duration,
     /// Sends that failed in a row (the first is logged as a warning, the rest quietly).
     failures: u64,
+    /// The repeating timer, replaced when the start work runs again after a restart.
+    ticking: Option<SpawnHandle>,
+    supervision: Supervision,
 }
 
 impl Announcer {
     /// Binds a broadcast-capable UDP socket for `announcement`.
-    pub fn new(config: &AnnounceConfig, announcement: &Announcement) -> std::io::Result<Self> {
+    pub fn new(
+        config: &AnnounceConfig,
+        announcement: &Announcement,
+        supervision: Supervision,
+    ) -> std::io::Result<Self> {
         let datagram = announcement
             .encode()
             .map_err(|e: DiscoveryError| std::io::Error::other(e.to_string()))?;
@@ -47,7 +55,16 @@ impl Announcer {
         let socket = UdpSocket::bind(any)?;
         socket.set_broadcast(true)?;
         socket.set_nonblocking(true)?;
-        Ok(Self { socket, to: config.to, datagram, interval: config.interval, failures: 0 })
+        let interval = config.interval;
+        Ok(Self {
+            socket,
+            to: config.to,
+            datagram,
+            interval,
+            failures: 0,
+            ticking: None,
+            supervision,
+        })
     }
 }
 
@@ -55,9 +72,32 @@ impl Actor for Announcer {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for Announcer {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    fn on_start(&mut self, ctx: &mut Context<Self>) {
         tracing::info!(to = %self.to, "announcing this master (--no-announce turns it off)");
+        if let Some(old) = self.ticking.take() {
+            ctx.cancel_future(old);
+        }
         self.announce();
-        ctx.run_interval(self.interval, |act, _| act.announce());
+        self.ticking = Some(ctx.run_interval_guarded(self.interval, |act, _| act.announce()));
+    }
+
+    /// Nothing to replace: it repeats one datagram.
+    fn restart(&mut self, _: &mut Context<Self>) {}
+}
+
+impl Handler<InjectPanic> for Announcer {
+    type Result = ();
+    fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |_, _| panic!("injected panic in the announcer"));
     }
 }
 

@@ -1,15 +1,19 @@
 //! The listener actor: accepts worker connections (up to a cap) and starts one
 //! connection actor per socket; refused sockets get a `Rejected` saying why.
 //!
-//! It is the connections' supervisor: it knows every live connection (for the
-//! fault-injection hooks), and a connection that ends — cleanly, on a protocol error,
-//! a contained panic or a kill — is simply gone: its jobs are not redone and the worker
-//! is served again by a fresh connection actor when it reconnects (workers reconnect
-//! with back-off and jitter on their side).
+//! It is the connections' supervisor (`supervision`'s tree): it knows every live
+//! connection (for the fault-injection hooks), and a connection that ends — cleanly, on
+//! a protocol error, a contained panic or a kill — is simply gone: its jobs are lost
+//! (counted, never redone) and the worker is served again by a fresh connection actor
+//! when it reconnects (workers reconnect with back-off and jitter on their side). A
+//! worker whose connections keep ending on errors is refused for a while
+//! ([`PeerBackoff`]): the listener records each failed end, the connection checks the
+//! worker's name against the record when its `Hello` arrives.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use actix::prelude::*;
 use tokio::io::AsyncWriteExt;
@@ -18,7 +22,9 @@ use tokio_util::codec::FramedRead;
 
 use crate::connection::{Connection, ConnectionConfig, ConnectionLinks, Kill};
 use crate::presenter::stats::Counters;
-use crate::supervision::InjectPanic;
+use crate::supervision::{
+    ActorKind, Guard, InjectPanic, PeerBackoff, PeerPolicy, RestartPolicy, Supervised, Supervision,
+};
 use crate::wire::codec::{to_frame, MasterCodec};
 use crate::wire::counted_io::{CountedRead, CountedWrite};
 use crate::wire::protocol::ConnId;
@@ -31,6 +37,9 @@ use crate::wire::rejection::Rejection;
 pub struct ConnectionEnded {
     pub conn: ConnId,
     pub failed: bool,
+    /// The worker's name from its `Hello`: the per-peer back-off's key (`None` before
+    /// the `Hello`, and for a connection that back-off refused).
+    pub worker: Option<String>,
 }
 
 /// Internal: one accepted socket (or accept error).
@@ -63,6 +72,9 @@ pub struct Listener {
     config: Arc<ConnectionConfig>,
     links: ConnectionLinks,
     counters: Arc<Counters>,
+    /// Failed ends per worker, shared with the connections that check it.
+    peers: Arc<Mutex<PeerBackoff>>,
+    supervision: Supervision,
 }
 
 impl Listener {
@@ -73,6 +85,7 @@ impl Listener {
         config: Arc<ConnectionConfig>,
         links: ConnectionLinks,
         counters: Arc<Counters>,
+        policy: (RestartPolicy, PeerPolicy),
     ) -> Self {
         Self {
             socket: Some(socket),
@@ -81,7 +94,9 @@ impl Listener {
             conns: HashMap::new(),
             config,
             links,
+            supervision: Supervision::restarting(ActorKind::Listener, policy.0, counters.clone()),
             counters,
+            peers: Arc::new(Mutex::new(PeerBackoff::new(policy.1))),
         }
     }
 }
@@ -90,6 +105,17 @@ impl Actor for Listener {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for Listener {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    /// Starts accepting (once: the socket moves into the accept stream).
+    fn on_start(&mut self, ctx: &mut Context<Self>) {
         let Some(socket) = self.socket.take() else { return };
         let accepts = futures::stream::unfold(socket, |s| async move {
             let r = s.accept().await;
@@ -97,11 +123,22 @@ impl Actor for Listener {
         });
         ctx.add_message_stream(accepts);
     }
+
+    /// Nothing to replace: its state is the live connections and the peers' record,
+    /// which a panic in one handler does not make wrong.
+    fn restart(&mut self, _: &mut Context<Self>) {}
 }
 
 impl Handler<Accepted> for Listener {
     type Result = ();
-    fn handle(&mut self, msg: Accepted, _: &mut Context<Self>) {
+    fn handle(&mut self, msg: Accepted, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |l, _| l.accepted(msg));
+    }
+}
+
+impl Listener {
+    /// Starts a connection actor for an accepted socket, or refuses it at the cap.
+    fn accepted(&mut self, msg: Accepted) {
         let (stream, peer) = match msg.0 {
             Ok(s) => s,
             Err(e) => {
@@ -123,12 +160,13 @@ impl Handler<Accepted> for Listener {
         let (read, write) = stream.into_split();
         let (config, links, counters) =
             (self.config.clone(), self.links.clone(), self.counters.clone());
+        let (peers, faults) = (self.peers.clone(), self.supervision.faults());
         let addr = Connection::create(move |ctx| {
             let read = CountedRead::new(read, counters.bytes_in.clone());
             ctx.add_stream(FramedRead::new(read, MasterCodec::new()));
             let write = CountedWrite::new(write, counters.bytes_out.clone());
             let writer = actix::io::FramedWrite::new(write, MasterCodec::new(), ctx);
-            Connection::new(id, peer, writer, config, links, counters)
+            Connection::new(id, peer, writer, config, links, counters, peers).with_faults(faults)
         });
         self.conns.insert(id, addr);
     }
@@ -136,34 +174,52 @@ impl Handler<Accepted> for Listener {
 
 impl Handler<ConnectionEnded> for Listener {
     type Result = ();
-    fn handle(&mut self, msg: ConnectionEnded, _: &mut Context<Self>) {
-        self.conns.remove(&msg.conn);
-        if msg.failed {
+    fn handle(&mut self, msg: ConnectionEnded, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |l, _| {
+            l.conns.remove(&msg.conn);
+            if !msg.failed {
+                return;
+            }
             tracing::debug!(conn = msg.conn, "connection ended on an error");
-        }
+            if let Some(worker) = &msg.worker {
+                l.peers.lock().unwrap_or_else(|p| p.into_inner()).failed(worker, Instant::now());
+            }
+        });
     }
 }
 
 impl Handler<KillConnection> for Listener {
     type Result = bool;
-    fn handle(&mut self, msg: KillConnection, _: &mut Context<Self>) -> bool {
-        self.conns.get(&msg.0).map(|a| a.do_send(Kill)).is_some()
+    fn handle(&mut self, msg: KillConnection, ctx: &mut Context<Self>) -> bool {
+        self.guarded(ctx, |l, _| l.conns.get(&msg.0).map(|a| a.do_send(Kill)).is_some())
+            .unwrap_or(false)
     }
 }
 
 impl Handler<PanicConnection> for Listener {
     type Result = bool;
-    fn handle(&mut self, msg: PanicConnection, _: &mut Context<Self>) -> bool {
-        self.conns.get(&msg.0).map(|a| a.do_send(InjectPanic)).is_some()
+    fn handle(&mut self, msg: PanicConnection, ctx: &mut Context<Self>) -> bool {
+        self.guarded(ctx, |l, _| l.conns.get(&msg.0).map(|a| a.do_send(InjectPanic)).is_some())
+            .unwrap_or(false)
     }
 }
 
 impl Handler<ListConnections> for Listener {
     type Result = MessageResult<ListConnections>;
-    fn handle(&mut self, _: ListConnections, _: &mut Context<Self>) -> Self::Result {
-        let mut ids: Vec<ConnId> = self.conns.keys().copied().collect();
-        ids.sort_unstable();
-        MessageResult(ids)
+    fn handle(&mut self, _: ListConnections, ctx: &mut Context<Self>) -> Self::Result {
+        let ids = self.guarded(ctx, |l, _| {
+            let mut ids: Vec<ConnId> = l.conns.keys().copied().collect();
+            ids.sort_unstable();
+            ids
+        });
+        MessageResult(ids.unwrap_or_default())
+    }
+}
+
+impl Handler<InjectPanic> for Listener {
+    type Result = ();
+    fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |_, _| panic!("injected panic in the listener"));
     }
 }
 

@@ -23,7 +23,7 @@ use crate::connection::workers::WorkerTable;
 use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, Preparer, SinkOutcome};
 use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
 use crate::scene::state::SceneState;
-use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
 use crate::wire::protocol::FrameNo;
 
 /// Frames handed to the sink thread and not yet shown, at most, by default: two keep a
@@ -122,7 +122,7 @@ pub struct Presenter {
     /// The connected workers: the paused ones are listed in each frame's statistics.
     workers: Arc<WorkerTable>,
     report: Arc<Report>,
-    restarts: RestartTracker,
+    supervision: Supervision,
     finished: bool,
     /// When the presenter was made (the master's start), for `shown_at_ms`.
     started: Instant,
@@ -144,6 +144,8 @@ impl Presenter {
         workers: Arc<WorkerTable>,
         report: Arc<Report>,
     ) -> Self {
+        let supervision =
+            Supervision::restarting(ActorKind::Presenter, config.policy, counters.clone());
         Self {
             skipped_since_show: 0,
             shown: 0,
@@ -157,7 +159,7 @@ impl Presenter {
             counters,
             workers,
             report,
-            restarts: RestartTracker::new(config.policy),
+            supervision,
             finished: false,
             started: Instant::now(),
         }
@@ -168,6 +170,17 @@ impl Actor for Presenter {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for Presenter {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    /// Starts the sink thread (once).
+    fn on_start(&mut self, ctx: &mut Context<Self>) {
         let Some(mut sink) = self.sink.take() else { return };
         self.prepare = sink.preparer();
         let me = ctx.address();
@@ -179,6 +192,9 @@ impl Actor for Presenter {
             Err(e) => self.fail(format!("cannot start the frame sink thread: {e}")),
         }
     }
+
+    /// Nothing to replace: the frame it was showing is lost, the next one is shown.
+    fn restart(&mut self, _: &mut Context<Self>) {}
 }
 
 impl Handler<FrameShown> for Presenter {
@@ -189,62 +205,61 @@ impl Handler<FrameShown> for Presenter {
         if self.finished {
             return freed_to.do_send(SinkFreed);
         }
-        match contain(|| self.show(msg)) {
-            Ok(true) => {}
-            // Not handed to the sink: its place is free at once.
-            Ok(false) => freed_to.do_send(SinkFreed),
-            Err(panic) => {
-                freed_to.do_send(SinkFreed);
-                self.restart_after(&panic, ctx);
-            }
+        // Not handed to the sink (or lost in a panic): its place is free at once.
+        if self.guarded(ctx, |p, _| p.show(msg)) != Some(true) {
+            freed_to.do_send(SinkFreed);
         }
     }
 }
 
 impl Handler<FrameSkipped> for Presenter {
     type Result = ();
-    fn handle(&mut self, msg: FrameSkipped, _: &mut Context<Self>) {
-        Counters::add(&self.counters.results_unused, u64::from(msg.back));
-        self.skipped_since_show += 1;
-        self.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
-        self.report.changed.notify_all();
+    fn handle(&mut self, msg: FrameSkipped, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |p, _| {
+            Counters::add(&p.counters.results_unused, u64::from(msg.back));
+            p.skipped_since_show += 1;
+            p.report.state.lock().unwrap_or_else(|p| p.into_inner()).skipped += 1;
+            p.report.changed.notify_all();
+        });
     }
 }
 
 impl Handler<PrepareState> for Presenter {
     type Result = ();
-    fn handle(&mut self, msg: PrepareState, _: &mut Context<Self>) {
-        if let Some(prepare) = &self.prepare {
-            prepare(msg.0);
-        }
+    fn handle(&mut self, msg: PrepareState, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |p, _| {
+            if let Some(prepare) = &p.prepare {
+                prepare(msg.0);
+            }
+        });
     }
 }
 
 impl Handler<SinkDone> for Presenter {
     type Result = ();
-    fn handle(&mut self, msg: SinkDone, _: &mut Context<Self>) {
-        if let Some(to) = &self.freed_to {
-            to.do_send(SinkFreed);
-        }
-        if let Err(e) = msg.0 {
-            self.fail(e.to_string());
-        }
+    fn handle(&mut self, msg: SinkDone, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |p, _| {
+            if let Some(to) = &p.freed_to {
+                to.do_send(SinkFreed);
+            }
+            if let Err(e) = msg.0 {
+                p.fail(e.to_string());
+            }
+        });
     }
 }
 
 impl Handler<Shutdown> for Presenter {
     type Result = ();
-    fn handle(&mut self, _: Shutdown, _: &mut Context<Self>) {
-        self.finish(None);
+    fn handle(&mut self, _: Shutdown, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |p, _| p.finish(None));
     }
 }
 
 impl Handler<InjectPanic> for Presenter {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        if let Err(msg) = contain(|| panic!("injected panic in the presenter")) {
-            self.restart_after(&msg, ctx);
-        }
+        self.guarded(ctx, |_, _| panic!("injected panic in the presenter"));
     }
 }
 
@@ -302,17 +317,19 @@ impl Presenter {
             owners: closed.owners,
             stats: stats.clone(),
         };
-        let taken = match self.sink_tx.as_ref().map(|tx| tx.try_send(frame)) {
-            Some(Ok(())) => true,
-            // Cannot happen while the assembler bounds the frames in flight; never block here.
-            Some(Err(TrySendError::Full(_))) => {
-                tracing::warn!(frame = stats.frame, "sink full; frame not shown");
-                false
-            }
-            Some(Err(TrySendError::Disconnected(_))) => {
-                tracing::warn!("sink thread gone");
-                false
-            }
+        let taken = match &self.sink_tx {
+            Some(tx) => match tx.try_send(frame) {
+                Ok(()) => true,
+                // Cannot happen while the assembler bounds the frames in flight; never block.
+                Err(TrySendError::Full(_)) => {
+                    tracing::warn!(frame = stats.frame, "sink full; frame not shown");
+                    false
+                }
+                Err(TrySendError::Disconnected(_)) => {
+                    tracing::warn!("sink thread gone");
+                    false
+                }
+            },
             None => false,
         };
         {
@@ -346,11 +363,5 @@ impl Presenter {
     fn fail(&mut self, error: String) {
         tracing::error!(cause = %error, "stopping the master");
         self.finish(Some(error));
-    }
-
-    /// After a contained panic: the frame it was showing is lost; the next one is shown.
-    fn restart_after(&mut self, msg: &str, ctx: &mut Context<Self>) {
-        let counters = self.counters.clone();
-        after_panic("presenter", msg, &mut self.restarts, &counters, ctx);
     }
 }

@@ -46,6 +46,9 @@ pub struct Counters {
     pub jobs_handed_twice: AtomicU64,
     /// Connections ended with a protocol error (rejections included).
     pub connections_rejected: AtomicU64,
+    /// Jobs held by connections when they ended (the worker left, failed, was killed or
+    /// its connection actor panicked): lost, never handed out again.
+    pub jobs_lost: AtomicU64,
     /// Panics contained at an actor boundary.
     pub panics_contained: AtomicU64,
     /// Why supervision gave up (an actor past the restart intensity), once it did: the

@@ -4,6 +4,10 @@
 //! An edit names what it changes (objects and materials by name, lights by index)
 //! and carries only the fields it changes; [`apply`] checks the target exists and the
 //! values are sane before touching the state, so a bad edit leaves it unchanged.
+//!
+//! The window's controls make `WindowEdit`s (whole parts by index, for the window's own
+//! copy of the state) and turn each into an [`Edit`] before it reaches the master: the
+//! master, scripts and tests know only [`Edit`] and [`EditError`].
 
 use glam::{EulerRot, Quat, Vec3};
 use serde::{Deserialize, Serialize};

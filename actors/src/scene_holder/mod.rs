@@ -11,7 +11,9 @@ use crate::presenter::stats::Counters;
 use crate::scene::edit::{apply, Edit, EditError};
 use crate::scene::state::{SceneState, StateVersion};
 use crate::scheduler::StateChanged;
-use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{
+    ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
+};
 
 /// Apply one edit; answers the new version.
 #[derive(Message, Debug, Clone)]
@@ -41,7 +43,7 @@ pub struct SceneHolder {
     state: Arc<SceneState>,
     changes_to: Recipient<StateChanged>,
     counters: Arc<Counters>,
-    restarts: RestartTracker,
+    supervision: Supervision,
 }
 
 impl SceneHolder {
@@ -51,7 +53,8 @@ impl SceneHolder {
         counters: Arc<Counters>,
         policy: RestartPolicy,
     ) -> Self {
-        Self { state, changes_to, counters, restarts: RestartTracker::new(policy) }
+        let supervision = Supervision::restarting(ActorKind::SceneHolder, policy, counters.clone());
+        Self { state, changes_to, counters, supervision }
     }
 
     /// Applies an edit that happened at `at` (logged for the edit-to-display latency).
@@ -69,24 +72,32 @@ impl SceneHolder {
 
 impl Actor for SceneHolder {
     type Context = Context<Self>;
+
+    fn started(&mut self, ctx: &mut Context<Self>) {
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for SceneHolder {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    /// Nothing to replace: the state is an immutable value, and keeping the last good
+    /// one is the restart.
+    fn restart(&mut self, _: &mut Context<Self>) {}
 }
 
 impl Handler<ApplyEdit> for SceneHolder {
     type Result = Result<StateVersion, EditError>;
     fn handle(&mut self, msg: ApplyEdit, ctx: &mut Context<Self>) -> Self::Result {
-        match contain(|| self.apply(&msg.0, Instant::now())) {
-            Ok(r) => r,
-            Err(panic) => {
-                let counters = self.counters.clone();
-                // The state is an immutable value: keeping the last good one is the restart.
-                after_panic("scene holder", &panic, &mut self.restarts, &counters, ctx);
-                Err(EditError::BadValue {
-                    field: "edit",
-                    expected: "an edit that applies",
-                    value: panic,
-                })
-            }
-        }
+        self.guarded(ctx, |s, _| s.apply(&msg.0, Instant::now())).unwrap_or(Err(
+            EditError::BadValue {
+                field: "edit",
+                expected: "an edit that applies",
+                value: "one that made the scene holder panic (the last good state is kept)".into(),
+            },
+        ))
     }
 }
 
@@ -94,7 +105,7 @@ impl Handler<PlayScript> for SceneHolder {
     type Result = ();
     fn handle(&mut self, msg: PlayScript, ctx: &mut Context<Self>) {
         for (at, edit) in msg.0 {
-            ctx.run_later(at, move |act, _| match act.apply(&edit, Instant::now()) {
+            ctx.run_later_guarded(at, move |act, _| match act.apply(&edit, Instant::now()) {
                 Ok(version) => tracing::debug!(version, ?edit, "script edit applied"),
                 Err(e) => tracing::warn!(cause = %e, ?edit, "script edit refused"),
             });
@@ -105,14 +116,10 @@ impl Handler<PlayScript> for SceneHolder {
 impl Handler<EditMade> for SceneHolder {
     type Result = ();
     fn handle(&mut self, msg: EditMade, ctx: &mut Context<Self>) {
-        match contain(|| self.apply(&msg.edit, msg.at)) {
-            Ok(Ok(version)) => tracing::trace!(version, "edit applied"),
-            Ok(Err(e)) => tracing::warn!(cause = %e, edit = ?msg.edit, "edit refused"),
-            Err(panic) => {
-                let counters = self.counters.clone();
-                after_panic("scene holder", &panic, &mut self.restarts, &counters, ctx);
-            }
-        }
+        self.guarded(ctx, |s, _| match s.apply(&msg.edit, msg.at) {
+            Ok(version) => tracing::trace!(version, "edit applied"),
+            Err(e) => tracing::warn!(cause = %e, edit = ?msg.edit, "edit refused"),
+        });
     }
 }
 
@@ -126,9 +133,6 @@ impl Handler<CurrentState> for SceneHolder {
 impl Handler<InjectPanic> for SceneHolder {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        if let Err(panic) = contain(|| panic!("injected panic in the scene holder")) {
-            let counters = self.counters.clone();
-            after_panic("scene holder", &panic, &mut self.restarts, &counters, ctx);
-        }
+        self.guarded(ctx, |_, _| panic!("injected panic in the scene holder"));
     }
 }

@@ -30,7 +30,7 @@ use crate::presenter::stats::Counters;
 use crate::scene::state::SceneState;
 use crate::scheduler::handout_plan::HandOutPlan;
 use crate::scheduler::job_queue::{Job, JobQueue};
-use crate::supervision::{after_panic, contain, InjectPanic, RestartPolicy, RestartTracker};
+use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{FrameNo, SetNo};
 
@@ -103,7 +103,7 @@ pub struct Scheduler {
     /// This actor's own address, named in [`FrameScheduled`] for the reply.
     me: Option<Recipient<FrameDisplayed>>,
     counters: Arc<Counters>,
-    restarts: RestartTracker,
+    supervision: Supervision,
     /// Discard queued jobs of outdated state versions on a state change (the default;
     /// off only to measure what it gains).
     discard_stale: bool,
@@ -130,9 +130,9 @@ impl Scheduler {
             plan,
             demand: VecDeque::new(),
             links,
+            supervision: Supervision::restarting(ActorKind::Scheduler, policy, counters.clone()),
             me: None,
             counters,
-            restarts: RestartTracker::new(policy),
         }
     }
 }
@@ -149,15 +149,35 @@ impl Actor for Scheduler {
     type Context = Context<Self>;
 
     fn started(&mut self, ctx: &mut Context<Self>) {
+        self.start_guarded(ctx);
+    }
+}
+
+impl Supervised for Scheduler {
+    fn supervision(&mut self) -> &mut Supervision {
+        &mut self.supervision
+    }
+
+    fn on_start(&mut self, ctx: &mut Context<Self>) {
         self.me = Some(ctx.address().recipient());
-        self.guarded(ctx, |s| s.dispatch());
+        self.dispatch();
+    }
+
+    /// A fresh queue: frame numbers continue, the jobs it held are lost (never redone)
+    /// and the presenter decides on their frames at once.
+    fn restart(&mut self, _: &mut Context<Self>) {
+        let state = self.queue.state().clone();
+        let first = self.queue.next_frame();
+        self.queue = JobQueue::new(self.sets, self.threshold, state, first);
+        self.queue.set_quota(self.plan.quota(self.sets));
+        self.links.abandoned_to.do_send(FramesAbandoned { before: first });
     }
 }
 
 impl Handler<StateChanged> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: StateChanged, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| {
+        self.guarded(ctx, |s, _| {
             s.queue.set_state(msg.0);
             if !s.discard_stale {
                 return;
@@ -176,7 +196,7 @@ impl Handler<StateChanged> for Scheduler {
 impl Handler<WorkerReady> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: WorkerReady, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| {
+        self.guarded(ctx, |s, _| {
             match s.demand.iter_mut().find(|(c, _, _)| *c == msg.conn) {
                 Some(entry) => entry.1 += msg.credits,
                 None => s.demand.push_back((msg.conn, msg.credits, msg.jobs_to)),
@@ -189,7 +209,7 @@ impl Handler<WorkerReady> for Scheduler {
 impl Handler<WorkerLeft> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: WorkerLeft, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| {
+        self.guarded(ctx, |s, _| {
             s.demand.retain(|(c, _, _)| *c != msg.conn);
             // Its jobs are lost: other sets of those frames make up their quota.
             for (frame, _) in s.plan.left(msg.conn) {
@@ -203,14 +223,14 @@ impl Handler<WorkerLeft> for Scheduler {
 impl Handler<JobAnswered> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: JobAnswered, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| s.plan.answered(msg.conn, msg.frame, msg.set, Instant::now()));
+        self.guarded(ctx, |s, _| s.plan.answered(msg.conn, msg.frame, msg.set, Instant::now()));
     }
 }
 
 impl Handler<PacingChanged> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: PacingChanged, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| {
+        self.guarded(ctx, |s, _| {
             s.plan.set_pacing(msg.0);
             s.queue.set_quota(s.plan.quota(s.sets));
             s.dispatch();
@@ -221,7 +241,7 @@ impl Handler<PacingChanged> for Scheduler {
 impl Handler<FrameDisplayed> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: FrameDisplayed, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| {
+        self.guarded(ctx, |s, _| {
             s.queue.frame_displayed(msg.frame);
             s.plan.displayed(msg.frame, Instant::now());
             s.dispatch();
@@ -232,7 +252,7 @@ impl Handler<FrameDisplayed> for Scheduler {
 impl Handler<InjectPanic> for Scheduler {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |_| panic!("injected panic in the scheduler"));
+        self.guarded(ctx, |_, _| panic!("injected panic in the scheduler"));
     }
 }
 
@@ -298,33 +318,5 @@ impl Scheduler {
             let displayed_to = me.clone();
             self.links.frames_to.do_send(FrameScheduled { frame, state, displayed_to });
         }
-    }
-
-    /// Runs a handler body; a panic restarts the queue (frame numbers continue, the
-    /// jobs it held are lost, never redone) after the policy's back-off.
-    fn guarded(&mut self, ctx: &mut Context<Self>, f: impl FnOnce(&mut Self)) {
-        if let Err(msg) = contain(|| f(self)) {
-            let counters = self.counters.clone();
-            if after_panic("scheduler", &msg, &mut self.restarts, &counters, ctx) {
-                let state = self.queue.state().clone();
-                let first = self.queue.next_frame();
-                self.queue = JobQueue::new(self.sets, self.threshold, state, first);
-                self.queue.set_quota(self.plan.quota(self.sets));
-                self.links.abandoned_to.do_send(FramesAbandoned { before: first });
-                ctx.notify(Restarted);
-            }
-        }
-    }
-}
-
-/// Internal: resume dispatching once the restart back-off is over.
-#[derive(Message)]
-#[rtype(result = "()")]
-struct Restarted;
-
-impl Handler<Restarted> for Scheduler {
-    type Result = ();
-    fn handle(&mut self, _: Restarted, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s| s.dispatch());
     }
 }

@@ -29,6 +29,14 @@
 //!    and whose radiance holds exactly one pixel per pixel of the set (pixel indices
 //!    never travel: both sides derive them from `(resolution, sets, partition, set)`).
 //!
+//! # Worker identity
+//! The `name` of a worker's `Hello` is who it is to the master: log lines, the status
+//! panel and the listener's per-peer back-off (`supervision::peers`) key on it, never on
+//! the address (every worker behind one NAT, and every test worker, shares one). A worker
+//! keeps its name across reconnects: `--name` or the host name and process id, with one
+//! `#n` suffix per connection slot (render thread). So a worker whose connections keep
+//! failing is refused as itself, and another worker on the same host is not.
+//!
 //! # Result integrity
 //! Every [`JobResult`] carries a 128-bit `tag` over (frame, set, state version,
 //! radiance) under a per-connection key; see [`crate::wire::integrity`]. The key is derived

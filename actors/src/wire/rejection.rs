@@ -35,6 +35,8 @@ pub enum RejectionKind {
     Phase,
     /// Refused at the connection cap.
     Full,
+    /// Refused for a while: the worker's connections kept failing (per-peer back-off).
+    BackedOff,
     /// A broken stream (no `Rejected` sent: nobody would read it).
     Io,
     /// Anything else: a bad name, an unreadable asset, an internal error.
@@ -59,6 +61,7 @@ impl RejectionKind {
             Self::Timeout => "timeout",
             Self::Phase => "phase",
             Self::Full => "full",
+            Self::BackedOff => "backed_off",
             Self::Io => "io",
             Self::Other => "other",
         }
@@ -104,6 +107,8 @@ pub enum Rejection {
     Full { max: usize },
     #[error("internal error in the master; reconnect")]
     Internal,
+    #[error("worker {worker}: {failures} failed connections within {window_s:.0} s; refused for now, retry in {retry_in_s:.0} s")]
+    BackedOff { worker: String, failures: usize, window_s: f32, retry_in_s: f32 },
 }
 
 impl Rejection {
@@ -122,6 +127,7 @@ impl Rejection {
             Self::Timeout { .. } => RejectionKind::Timeout,
             Self::BadFrame { kind, .. } => *kind,
             Self::Full { .. } => RejectionKind::Full,
+            Self::BackedOff { .. } => RejectionKind::BackedOff,
             Self::Name { .. } | Self::AssetUnreadable { .. } | Self::Internal => {
                 RejectionKind::Other
             }

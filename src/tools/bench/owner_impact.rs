@@ -138,6 +138,7 @@ fn start_master(opts: &OwnerImpactOptions) -> anyhow::Result<MasterHandle> {
         frames: None,
         keep_stale_jobs: false,
         sink_in_flight: gridlight_actors::presenter::DEFAULT_SINK_IN_FLIGHT,
+        inject_panics: Vec::new(),
         headless: Default::default(),
     };
     let prepared = launch::prepare(&options)?;

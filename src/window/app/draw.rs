@@ -25,7 +25,7 @@ impl App {
             match action {
                 PanelAction::Edit(edit) => self.edit(edit),
                 PanelAction::Pacing(pacing) => self.session.set_pacing(pacing),
-                PanelAction::ResetCamera => self.edit(SceneEdit::Camera(self.controller.reset())),
+                PanelAction::ResetCamera => self.edit(WindowEdit::Camera(self.controller.reset())),
                 PanelAction::Deselect => self.selected = None,
                 PanelAction::Screenshot => self.screenshot(),
                 PanelAction::SaveScript => {

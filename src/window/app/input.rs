@@ -84,7 +84,7 @@ impl App {
             Gesture::Camera { last } => {
                 let d = p - last;
                 let camera = self.controller.drag(&self.scene.camera, d.x, d.y);
-                self.edit(SceneEdit::Camera(camera));
+                self.edit(WindowEdit::Camera(camera));
                 self.gesture = Gesture::Camera { last: p };
             }
             Gesture::Object { object, last } => {
@@ -98,7 +98,7 @@ impl App {
                         self.scene.resolution.height,
                     );
                     let transform = manipulate::moved(o.transform, offset);
-                    self.edit(SceneEdit::ObjectTransform { object, transform });
+                    self.edit(WindowEdit::ObjectTransform { object, transform });
                 }
                 self.gesture = Gesture::Object { object, last: p };
             }
@@ -116,7 +116,7 @@ impl App {
             KeyCode::KeyE => keys.up = pressed,
             KeyCode::KeyQ => keys.down = pressed,
             _ if !pressed => {}
-            KeyCode::KeyR => self.edit(SceneEdit::Camera(self.controller.reset())),
+            KeyCode::KeyR => self.edit(WindowEdit::Camera(self.controller.reset())),
             KeyCode::F12 | KeyCode::KeyP => self.screenshot(),
             KeyCode::Escape => self.selected = None,
             KeyCode::Digit1
@@ -152,7 +152,7 @@ impl App {
         let cam = &self.scene.camera;
         let step = (cam.look_at - cam.position).length() * NUDGE_FRACTION;
         let transform = manipulate::moved(o.transform, manipulate::nudge_offset(cam, nudge, step));
-        self.edit(SceneEdit::ObjectTransform { object, transform });
+        self.edit(WindowEdit::ObjectTransform { object, transform });
     }
 
     /// Fly movement for the time since the last step, while movement keys are held.
@@ -162,7 +162,7 @@ impl App {
         self.last_move = now;
         if self.keys.any() {
             let camera = self.controller.fly(&self.scene.camera, self.keys, dt);
-            self.edit(SceneEdit::Camera(camera));
+            self.edit(WindowEdit::Camera(camera));
         }
     }
 }

@@ -22,7 +22,7 @@ use winit::window::{Window, WindowId};
 
 use super::blit::BlitPass;
 use super::camera::{CameraController, MoveKeys};
-use super::edits::{EditQueue, SceneEdit};
+use super::edits::{EditQueue, WindowEdit};
 use super::gpu::{Acquired, Gpu};
 use super::latest::Latest;
 use super::layout::{self, Rect};
@@ -172,7 +172,7 @@ impl App {
     }
 
     /// Queues an edit and applies it to the window's copy of the state.
-    fn edit(&mut self, edit: SceneEdit) {
+    fn edit(&mut self, edit: WindowEdit) {
         match edit.apply(&mut self.scene) {
             Ok(()) => self.edits.push(edit, Instant::now()),
             Err(err) => tracing::warn!(cause = %err, "edit ignored"),
@@ -240,7 +240,7 @@ impl ApplicationHandler<UserEvent> for App {
                     MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
                 };
                 let camera = self.controller.wheel(&self.scene.camera, notches);
-                self.edit(SceneEdit::Camera(camera));
+                self.edit(WindowEdit::Camera(camera));
                 self.request_redraw();
             }
             WindowEvent::KeyboardInput { event, .. } => {

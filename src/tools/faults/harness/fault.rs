@@ -114,12 +114,7 @@ impl Harness {
     pub fn panic_actor(&mut self, kind: ActorKind) {
         if let Some(m) = &self.master {
             m.inject_panic(kind);
-            self.fault(match kind {
-                ActorKind::Scheduler => "panic_scheduler",
-                ActorKind::Assembler => "panic_assembler",
-                ActorKind::Presenter => "panic_presenter",
-                ActorKind::SceneHolder => "panic_scene_holder",
-            });
+            self.fault(&format!("panic_{}", kind.name().replace('-', "_")));
         }
     }
 

@@ -177,6 +177,10 @@ impl Harness {
         mc.heartbeat = c.heartbeat;
         mc.peer_timeout = c.peer_timeout;
         mc.initial_frame_time = Duration::from_millis(50);
+        // Broken links fail a worker's connections on purpose, several in a row: the
+        // harness measures recovery, so no worker is backed off for them (the back-off
+        // has its own tests in actors/tests/supervision.rs).
+        mc.peer_backoff.max_failures = usize::MAX;
         let sink = Box::new(CheckingSink(self.checker.clone()));
         let m = start(mc, null_scene(c.width, c.height), AssetStore::new(), sink)
             .map_err(HarnessError::Master)?;
