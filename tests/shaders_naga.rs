@@ -38,7 +38,10 @@ fn every_wgsl_file_validates() {
         let source = std::fs::read_to_string(path).expect("readable shader");
         // Files that declare their own entry point and bindings are standalone (the raster
         // pass, the window's blit); reconstruction passes need the common block.
-        if path.file_name().is_some_and(|n| n == "common.wgsl") || source.contains("// standalone")
+        if path.parent().is_some_and(|p| p.ends_with("trace")) {
+            // The path tracer's files are parts of one module: validated assembled below.
+        } else if path.file_name().is_some_and(|n| n == "common.wgsl")
+            || source.contains("// standalone")
         {
             validate(&name, &source);
         } else {
@@ -46,6 +49,7 @@ fn every_wgsl_file_validates() {
         }
         checked += 1;
     }
+    validate("shaders/trace (assembled)", gridlight::render::gpu::WGSL);
     // common, five passes, the G-buffer raster pass and the blit.
     assert!(checked >= 8, "expected at least 8 WGSL files, found {checked}: {files:?}");
 }
@@ -57,4 +61,20 @@ fn compiled_in_sources_are_the_files() {
         let on_disk = std::fs::read_to_string(dir.join(name)).expect("pass file exists");
         assert_eq!(on_disk, source, "{name}");
     }
+}
+
+#[test]
+fn the_path_tracer_is_its_files_in_order() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/trace");
+    let files: String = gridlight::render::gpu::WGSL_FILES
+        .iter()
+        .map(|name| std::fs::read_to_string(dir.join(name)).expect("trace file exists"))
+        .collect();
+    assert_eq!(files, gridlight::render::gpu::WGSL);
+    let on_disk = std::fs::read_dir(&dir).expect("shaders/trace").count();
+    assert_eq!(
+        on_disk,
+        gridlight::render::gpu::WGSL_FILES.len(),
+        "a trace file is not compiled in"
+    );
 }

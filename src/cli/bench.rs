@@ -1,6 +1,6 @@
 //! `gridlight bench`: performance measurements printed as text or JSON lines.
 //!
-//! `bench trace [SCENE...]` renders each scene at 640×480, max depth 5, 4 spp on
+//! `bench trace [SCENE...]` (`--gpu`: on the GPU path tracer) renders each scene at 640×480, max depth 5, 4 spp on
 //! one thread. Without scenes it runs the built-in Cornell box and, when their
 //! assets are found on the search path, the bunny and Sponza scenes.
 
@@ -10,10 +10,13 @@ use std::sync::Arc;
 use anyhow::Context;
 
 use super::GlobalArgs;
+use crate::assets::Assets;
 use crate::render::testscenes;
 use crate::scene::{self, AssetSearchPath};
 use crate::tools::bench::reconstruct::BenchSettings as ReconBench;
 use crate::tools::bench::trace::{bench_scene, TraceReport, TraceSettings};
+use crate::tools::bench::trace_gpu::{bench_scene_gpu, GpuTraceReport};
+use gridlight_actors::state::SceneState;
 
 /// Arguments of `gridlight bench`.
 #[derive(Debug, Clone, clap::Args)]
@@ -84,6 +87,10 @@ pub struct TraceArgs {
     /// Maximum path length in segments (5 = camera ray plus four bounces).
     #[arg(long, default_value_t = TraceSettings::default().max_depth)]
     pub max_depth: u32,
+    /// Benchmark the GPU path tracer on the default adapter (samples and rays per second
+    /// of the device, with the adapter's name) instead of one CPU core.
+    #[arg(long)]
+    pub gpu: bool,
 }
 
 /// The built-in scenes of the default benchmark, relative to the `scenes/` folder.
@@ -122,12 +129,18 @@ fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
         runs: args.runs,
         ..TraceSettings::default()
     };
+    if args.gpu {
+        return trace_gpu(&args, global, settings);
+    }
+    let bench = |name: &str, assets, state: &SceneState| {
+        bench_scene(name, assets, state, settings).map_err(anyhow::Error::from)
+    };
     let reports: Vec<TraceReport> = if args.scenes.is_empty() {
-        default_scenes(global, settings)?
+        default_scenes(global, settings, &bench)?
     } else {
         args.scenes
             .iter()
-            .map(|path| bench_file(path, global, settings))
+            .map(|path| bench_file(path, global, &bench))
             .collect::<anyhow::Result<_>>()?
     };
     for r in reports {
@@ -151,26 +164,63 @@ fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn bench_file(
-    path: &Path,
-    global: &GlobalArgs,
-    settings: TraceSettings,
-) -> anyhow::Result<TraceReport> {
+/// `bench trace --gpu`: the same scenes on the GPU path tracer.
+fn trace_gpu(args: &TraceArgs, global: &GlobalArgs, settings: TraceSettings) -> anyhow::Result<()> {
+    let ctx = crate::gpu::GpuContext::new().context("bench trace --gpu: no GPU adapter")?;
+    let tracer = crate::render::gpu::GpuTracer::new(ctx.shared());
+    let bench = |name: &str, assets, state: &SceneState| {
+        bench_scene_gpu(&tracer, name, assets, state, settings)
+    };
+    let reports: Vec<GpuTraceReport> = if args.scenes.is_empty() {
+        default_scenes(global, settings, &bench)?
+    } else {
+        args.scenes
+            .iter()
+            .map(|path| bench_file(path, global, &bench))
+            .collect::<anyhow::Result<_>>()?
+    };
+    for r in reports {
+        if args.json {
+            println!("{}", serde_json::to_string(&r)?);
+        } else {
+            println!(
+                "{} on {}: {:.3} M samples/s, {:.2} M rays/s, {} triangles ({}x{}, {} spp, max depth {}, {:.2} s)",
+                r.scene,
+                r.adapter,
+                r.samples_per_second / 1e6,
+                r.rays_per_second / 1e6,
+                r.triangles,
+                r.width,
+                r.height,
+                r.spp,
+                r.max_depth,
+                r.seconds
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A benchmark of one loaded scene (the CPU's or the GPU's).
+type BenchFn<'a, R> = dyn Fn(&str, Arc<Assets>, &SceneState) -> anyhow::Result<R> + 'a;
+
+fn bench_file<R>(path: &Path, global: &GlobalArgs, bench: &BenchFn<R>) -> anyhow::Result<R> {
     let resolver = AssetSearchPath::from_env(&global.assets, Some(path));
     let loaded = scene::load(path, &resolver)?;
     let name = path
         .file_stem()
         .map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned());
-    bench_scene(&name, Arc::new(loaded.assets), &loaded.state, settings)
+    bench(&name, Arc::new(loaded.assets), &loaded.state)
         .with_context(|| format!("rendering {}", path.display()))
 }
 
 /// The Cornell box always (from `scenes/` when present, else built in code), then the
 /// asset scenes whose assets are found; skipped ones are reported on stderr.
-fn default_scenes(
+fn default_scenes<R>(
     global: &GlobalArgs,
     settings: TraceSettings,
-) -> anyhow::Result<Vec<TraceReport>> {
+    bench: &BenchFn<R>,
+) -> anyhow::Result<Vec<R>> {
     let dir = scenes_dir();
     let mut reports = Vec::new();
     for (i, file) in DEFAULT_SCENES.iter().enumerate() {
@@ -178,13 +228,13 @@ fn default_scenes(
         if !path.is_file() {
             if i == 0 {
                 let (assets, state) = testscenes::cornell_box(settings.width, settings.height);
-                reports.push(bench_scene("cornell-box", assets, &state, settings)?);
+                reports.push(bench("cornell-box", assets, &state)?);
             } else {
                 eprintln!("bench trace: skipping {}: not found", path.display());
             }
             continue;
         }
-        match bench_file(&path, global, settings) {
+        match bench_file(&path, global, bench) {
             Ok(r) => reports.push(r),
             // Asset scenes are optional: their assets may be absent on this machine.
             Err(err) if i > 0 => eprintln!("bench trace: skipping {}: {err:#}", path.display()),

@@ -24,6 +24,7 @@ pub mod simgrid;
 pub mod soak;
 pub mod worker;
 pub mod worker_file;
+pub mod worker_gpu;
 
 /// Interactive path tracing on a desktop grid.
 #[derive(Debug, Parser)]

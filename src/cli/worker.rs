@@ -73,6 +73,12 @@ pub struct Args {
     /// With --when-idle: seconds of inactivity before a paused worker resumes [default: 30].
     #[arg(long, value_name = "SECONDS", env = "GRIDLIGHT_IDLE_RESUME_AFTER")]
     pub idle_resume_after: Option<f64>,
+    /// Render with the GPU path tracer: `--gpu` (or `=on`) on any adapter, software ones
+    /// included; `--gpu=auto` only on a hardware adapter, else on CPU threads. Connections
+    /// follow the GPU's measured speed unless --threads is given.
+    #[arg(long, value_enum, value_name = "WHEN", env = "GRIDLIGHT_GPU", num_args = 0..=1,
+        require_equals = true, default_missing_value = "on")]
+    pub gpu: Option<super::worker_gpu::GpuChoice>,
     /// Settings file (TOML); the command line and the environment override it.
     #[arg(long, value_name = "FILE", env = "GRIDLIGHT_CONFIG")]
     pub config: Option<PathBuf>,
@@ -94,7 +100,9 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
         Some(master) => master,
         None => discovered(&args, &file)?,
     };
+    let (gpu, threads_given) = (args.gpu.unwrap_or_default(), args.threads.is_some());
     let config = worker_config(args, file, master)?;
+    let config = super::worker_gpu::apply(gpu, config, threads_given)?;
     match worker::run(config) {
         Ok(()) => Ok(()),
         Err(err @ WorkerError::Rejected { .. }) | Err(err @ WorkerError::NeedSecret) => {

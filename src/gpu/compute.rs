@@ -17,6 +17,10 @@ pub enum Binding {
     TextureArray,
     /// A write-only storage texture of the given format.
     Storage(wgpu::TextureFormat),
+    /// A read-only storage buffer.
+    ReadBuffer,
+    /// A read-write storage buffer.
+    ReadWriteBuffer,
 }
 
 /// One compiled compute pipeline and its layout.
@@ -104,10 +108,36 @@ impl ComputePass {
         pass.set_bind_group(0, bind_group, &[]);
         pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
     }
+
+    /// Records one dispatch of `groups` workgroups of a one-dimensional pass, laid out in
+    /// rows of at most 65535 (the shader flattens `(x, y)` with `num_workgroups`).
+    pub fn encode_linear(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        bind_group: &wgpu::BindGroup,
+        groups: u32,
+    ) {
+        if groups == 0 {
+            return;
+        }
+        let x = groups.min(65_535);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(self.name),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+    }
 }
 
 fn binding_type(slot: Binding) -> wgpu::BindingType {
     match slot {
+        Binding::ReadBuffer | Binding::ReadWriteBuffer => wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: slot == Binding::ReadBuffer },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
         Binding::Uniform => wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Uniform,
             has_dynamic_offset: false,

@@ -76,7 +76,15 @@ impl GpuContext {
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("gridlight"),
                 required_features,
-                required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+                // Storage buffers as large as the adapter allows: the GPU path tracer's
+                // scene is one buffer, larger than the default 128 MiB for big meshes.
+                required_limits: wgpu::Limits {
+                    max_storage_buffer_binding_size: adapter
+                        .limits()
+                        .max_storage_buffer_binding_size,
+                    max_buffer_size: adapter.limits().max_buffer_size,
+                    ..wgpu::Limits::default().using_resolution(adapter.limits())
+                },
                 ..Default::default()
             })
             .await

@@ -6,18 +6,18 @@ use gridlight_actors::state::{Camera, Resolution};
 /// Precomputed camera basis for generating rays through pixel positions.
 #[derive(Clone, Copy, Debug)]
 pub struct CameraRays {
-    origin: Vec3,
-    forward: Vec3,
+    pub(crate) origin: Vec3,
+    pub(crate) forward: Vec3,
     /// Unit right and up vectors.
-    right: Vec3,
-    up: Vec3,
+    pub(crate) right: Vec3,
+    pub(crate) up: Vec3,
     /// Half extents of the image plane at distance one.
-    half_w: f32,
-    half_h: f32,
-    inv_width: f32,
-    inv_height: f32,
-    aperture: f32,
-    focus_distance: f32,
+    pub(crate) half_w: f32,
+    pub(crate) half_h: f32,
+    pub(crate) inv_width: f32,
+    pub(crate) inv_height: f32,
+    pub(crate) aperture: f32,
+    pub(crate) focus_distance: f32,
 }
 
 /// Why a camera cannot be used.

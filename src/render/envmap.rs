@@ -15,11 +15,11 @@ use crate::assets::Texture;
 
 /// A 1-D piecewise-constant distribution.
 #[derive(Clone, Debug)]
-struct Distribution1D {
+pub(crate) struct Distribution1D {
     /// `cdf[i]` is the mass of bins below `i`; `cdf[n] == 1`.
-    cdf: Vec<f32>,
-    func: Vec<f32>,
-    integral: f32,
+    pub(crate) cdf: Vec<f32>,
+    pub(crate) func: Vec<f32>,
+    pub(crate) integral: f32,
 }
 
 impl Distribution1D {
@@ -75,13 +75,13 @@ pub enum Environment {
 /// An importance-sampled equirectangular map.
 #[derive(Clone, Debug)]
 pub struct EnvMap {
-    texture: Arc<Texture>,
-    scale: Vec3,
+    pub(crate) texture: Arc<Texture>,
+    pub(crate) scale: Vec3,
     /// World to map space (inverse of the rotation about +y).
     to_map: Mat3A,
-    to_world: Mat3A,
-    marginal: Distribution1D,
-    conditional: Vec<Distribution1D>,
+    pub(crate) to_world: Mat3A,
+    pub(crate) marginal: Distribution1D,
+    pub(crate) conditional: Vec<Distribution1D>,
 }
 
 impl Environment {

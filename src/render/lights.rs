@@ -57,33 +57,33 @@ pub struct LightSample {
 
 /// The sun as seen from the scene.
 #[derive(Clone, Copy, Debug)]
-struct Sun {
-    frame: Frame,
-    radiance: Vec3,
-    cos_max: f32,
+pub(crate) struct Sun {
+    pub(crate) frame: Frame,
+    pub(crate) radiance: Vec3,
+    pub(crate) cos_max: f32,
 }
 
 /// A point or spot light.
 #[derive(Clone, Copy, Debug)]
-struct PointLight {
-    position: Vec3,
-    intensity: Vec3,
+pub(crate) struct PointLight {
+    pub(crate) position: Vec3,
+    pub(crate) intensity: Vec3,
     /// Spot axis and smooth-step cosines; `None` for an isotropic point light.
-    spot: Option<(Vec3, f32, f32)>,
+    pub(crate) spot: Option<(Vec3, f32, f32)>,
 }
 
 /// All lights of one scene state.
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
     pub areas: Vec<AreaLight>,
-    area_cdf: Vec<f32>,
-    area_power: f32,
-    points: Vec<PointLight>,
-    sun: Option<Sun>,
+    pub(crate) area_cdf: Vec<f32>,
+    pub(crate) area_power: f32,
+    pub(crate) points: Vec<PointLight>,
+    pub(crate) sun: Option<Sun>,
     pub environment: Option<Environment>,
     /// Probability of each strategy (1 / number of strategies).
-    strategy_pmf: f32,
-    strategies: u32,
+    pub(crate) strategy_pmf: f32,
+    pub(crate) strategies: u32,
 }
 
 impl Lights {

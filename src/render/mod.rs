@@ -10,12 +10,13 @@
 //!
 //! Modules: [`accel`] (BVHs), [`sampler`] (scrambled Sobol), [`camera`],
 //! [`bsdf`] and [`microfacet`] (materials), [`lights`] and [`envmap`] (emitters),
-//! [`integrator`] (the path loop).
+//! [`integrator`] (the path loop); [`gpu`] the same kernel in WGSL for GPU workers.
 
 pub mod accel;
 pub mod bsdf;
 pub mod camera;
 pub mod envmap;
+pub mod gpu;
 pub mod integrator;
 pub mod lights;
 pub mod microfacet;

@@ -136,6 +136,20 @@ fn to_unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
+/// The 32-bit seed every sample stream of `pixel` in `frame` starts from: the only part
+/// of the sampler that needs 64-bit arithmetic, so the GPU tracer gets it from here.
+#[inline(always)]
+pub fn pixel_seed(seed: u64, frame: u64, pixel: u32) -> u32 {
+    let h = mix64(seed ^ mix64(frame.wrapping_add(0x9e37_79b9_7f4a_7c15) ^ mix64(pixel as u64)));
+    (h ^ (h >> 32)) as u32
+}
+
+/// The byte tables of Sobol dimensions 1..=3 as the GPU tracer reads them:
+/// `[dimension][byte][value]`, flattened.
+pub fn sobol_tables() -> &'static [[[u32; 256]; 4]; 3] {
+    &TABLES
+}
+
 /// The sample stream of one pixel sample: draws 4-D points for consecutive
 /// dimension groups of sample `index` of a pixel.
 #[derive(Clone, Copy, Debug)]
@@ -150,9 +164,11 @@ impl SampleStream {
     /// The stream of sample `index` of `pixel` in `frame` under the scene `seed`.
     #[inline(always)]
     pub fn new(seed: u64, frame: u64, pixel: u32, index: u32) -> Self {
-        let h =
-            mix64(seed ^ mix64(frame.wrapping_add(0x9e37_79b9_7f4a_7c15) ^ mix64(pixel as u64)));
-        Self { pixel_seed: (h ^ (h >> 32)) as u32, index_reversed: index.reverse_bits(), draw: 0 }
+        Self {
+            pixel_seed: pixel_seed(seed, frame, pixel),
+            index_reversed: index.reverse_bits(),
+            draw: 0,
+        }
     }
 
     /// The next 4-D point of this sample, every coordinate in [0, 1).

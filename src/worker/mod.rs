@@ -15,6 +15,7 @@
 //! - [`backoff`]: reconnect delays.
 //! - [`session`]: one connection's protocol phases.
 //! - [`render`]: the render thread (path tracer or null renderer).
+//! - [`gpu`]: a GPU worker's device thread, which renders all its connections' jobs.
 //! - [`shared`]: what the connections of a process share.
 //! - [`resolver`]: loading a scene's assets from the cache.
 //! - [`priority`]: the render threads' CPU priority.
@@ -24,6 +25,7 @@
 pub mod backoff;
 pub mod cache;
 pub mod discover;
+pub mod gpu;
 pub mod idle;
 pub mod priority;
 pub mod render;

@@ -60,6 +60,9 @@ pub enum RendererKind {
     Null { delay_ms: u32 },
     /// Cached path-traced pixels after a modelled render time (`crate::simgrid`).
     Simulated(Arc<crate::simgrid::SimGrid>),
+    /// The GPU path tracer: every connection's jobs go to one device thread
+    /// (`super::gpu`), which renders many at once.
+    Gpu(Arc<super::gpu::GpuRenderer>),
 }
 
 /// One job with the scene state it names.
@@ -104,6 +107,10 @@ enum Inner {
         renderer: Box<Renderer>,
         results: mpsc::UnboundedSender<Result<Answer, WorkerError>>,
     },
+    Gpu {
+        device: Arc<super::gpu::GpuRenderer>,
+        link: Arc<super::gpu::ConnLink>,
+    },
     Simulated {
         conn: Box<crate::simgrid::SimConnection>,
         table: Arc<gridlight_actors::sets::SetTable>,
@@ -134,6 +141,19 @@ impl RenderThread {
                 name.bytes().fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b)));
             let conn = Box::new(crate::simgrid::SimConnection::new(Arc::clone(grid), seed));
             return Ok(Self { inner: Inner::Simulated { conn, table, key, results } });
+        }
+        if let RendererKind::Gpu(device) = &kind {
+            let view = view.ok_or_else(|| WorkerError::Render("no asset view".into()))?;
+            let link = Arc::new(super::gpu::ConnLink {
+                view,
+                shared,
+                sets,
+                key,
+                results,
+                epoch: Arc::new(AtomicU64::new(0)),
+                newest: Arc::new(AtomicU64::new(0)),
+            });
+            return Ok(Self { inner: Inner::Gpu { device: Arc::clone(device), link } });
         }
         let inline = matches!(kind, RendererKind::Null { delay_ms: 0 });
         let mut renderer =
@@ -179,6 +199,9 @@ impl RenderThread {
             Inner::Thread { epoch, .. } => {
                 epoch.fetch_add(1, Ordering::AcqRel);
             }
+            Inner::Gpu { link, .. } => {
+                link.epoch.fetch_add(1, Ordering::AcqRel);
+            }
             Inner::Simulated { conn, .. } => conn.discard_queued(),
             Inner::Inline { .. } => {}
         }
@@ -195,6 +218,11 @@ impl RenderThread {
             Inner::Inline { renderer, results } => {
                 renderer.answer(&job, results);
                 Ok(())
+            }
+            Inner::Gpu { device, link } => {
+                link.newest.fetch_max(job.state.version, Ordering::AcqRel);
+                let queued_in = link.epoch.load(Ordering::Acquire);
+                device.submit(super::gpu::Queued { job, queued_in, link: Arc::clone(link) })
             }
             Inner::Simulated { conn, table, key, results } => {
                 if table.resolution() != job.state.resolution {
@@ -262,8 +290,8 @@ impl Renderer {
                 }
                 vec![encode_rgb9e5(null_radiance(job.frame)); pixels.len()]
             }
-            RendererKind::Simulated(_) => {
-                return Err(WorkerError::Render("the simulated renderer has no thread".into()))
+            RendererKind::Simulated(_) | RendererKind::Gpu(_) => {
+                return Err(WorkerError::Render("this renderer has no render thread".into()))
             }
             RendererKind::PathTracer => {
                 self.update_scene(&job.state)?;
@@ -297,41 +325,43 @@ impl Renderer {
         ))
     }
 
-    /// Brings the render scene to `state`'s version, building or updating it as needed.
+    /// Brings the render scene to `state`'s version (see [`bring_scene_to`]).
     fn update_scene(&mut self, state: &SceneState) -> Result<(), WorkerError> {
-        let stale = self.scene.as_ref().map(|s| s.state().version != state.version);
-        match stale {
-            None => {
-                let view = self
-                    .view
-                    .as_ref()
-                    .ok_or_else(|| WorkerError::Render("no asset view".into()))?;
-                let assets = self.shared.assets_for(view, state)?;
-                debug!(version = state.version, "building the render scene");
-                self.scene = Some(
-                    RenderScene::new(assets, state)
-                        .map_err(|e| WorkerError::Render(e.to_string()))?,
-                );
-            }
-            Some(true) => {
-                let scene = self
-                    .scene
-                    .as_mut()
-                    .ok_or_else(|| WorkerError::Render("no render scene".into()))?;
-                if let Err(err) = scene.set_state(state) {
-                    // New geometry or textures: load them and rebuild from scratch.
-                    debug!(version = state.version, cause = %err, "rebuilding the render scene");
-                    let view = self
-                        .view
-                        .as_ref()
-                        .ok_or_else(|| WorkerError::Render("no asset view".into()))?;
-                    let assets = self.shared.assets_for(view, state)?;
-                    *scene = RenderScene::new(assets, state)
-                        .map_err(|e| WorkerError::Render(e.to_string()))?;
-                }
-            }
-            Some(false) => {}
-        }
-        Ok(())
+        bring_scene_to(&mut self.scene, self.view.as_ref(), &self.shared, state)
     }
+}
+
+/// Brings `scene` to `state`'s version, building or updating it as needed (the CPU render
+/// threads and the GPU device thread alike).
+pub(super) fn bring_scene_to(
+    scene: &mut Option<RenderScene>,
+    view: Option<&CacheView>,
+    shared: &Shared,
+    state: &SceneState,
+) -> Result<(), WorkerError> {
+    let stale = scene.as_ref().map(|s| s.state().version != state.version);
+    match stale {
+        None => {
+            let view = view.ok_or_else(|| WorkerError::Render("no asset view".into()))?;
+            let assets = shared.assets_for(view, state)?;
+            debug!(version = state.version, "building the render scene");
+            *scene = Some(
+                RenderScene::new(assets, state).map_err(|e| WorkerError::Render(e.to_string()))?,
+            );
+        }
+        Some(true) => {
+            let current =
+                scene.as_mut().ok_or_else(|| WorkerError::Render("no render scene".into()))?;
+            if let Err(err) = current.set_state(state) {
+                // New geometry or textures: load them and rebuild from scratch.
+                debug!(version = state.version, cause = %err, "rebuilding the render scene");
+                let view = view.ok_or_else(|| WorkerError::Render("no asset view".into()))?;
+                let assets = shared.assets_for(view, state)?;
+                *current = RenderScene::new(assets, state)
+                    .map_err(|e| WorkerError::Render(e.to_string()))?;
+            }
+        }
+        Some(false) => {}
+    }
+    Ok(())
 }

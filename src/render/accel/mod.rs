@@ -18,9 +18,11 @@
 
 //!
 //! Files: `triangle.rs` (the triangle test), `blas.rs` (per mesh), `tlas.rs` (per scene
-//! state), `traverse.rs` (the node test and traversal restart both levels use).
+//! state), `traverse.rs` (the node test and traversal restart both levels use), `export.rs`
+//! (both levels as flat arrays for the GPU path tracer).
 
 mod blas;
+pub mod export;
 mod tlas;
 mod traverse;
 mod triangle;

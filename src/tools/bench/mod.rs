@@ -16,4 +16,5 @@ pub mod master;
 pub mod owner_impact;
 pub mod reconstruct;
 pub mod trace;
+pub mod trace_gpu;
 pub mod waste;
