@@ -135,14 +135,7 @@ fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
     let bench = |name: &str, assets, state: &SceneState| {
         bench_scene(name, assets, state, settings).map_err(anyhow::Error::from)
     };
-    let reports: Vec<TraceReport> = if args.scenes.is_empty() {
-        default_scenes(global, settings, &bench)?
-    } else {
-        args.scenes
-            .iter()
-            .map(|path| bench_file(path, global, &bench))
-            .collect::<anyhow::Result<_>>()?
-    };
+    let reports: Vec<TraceReport> = scenes_of(&args, global, settings, &bench)?;
     for r in reports {
         if args.json {
             println!("{}", serde_json::to_string(&r)?);
@@ -171,14 +164,7 @@ fn trace_gpu(args: &TraceArgs, global: &GlobalArgs, settings: TraceSettings) -> 
     let bench = |name: &str, assets, state: &SceneState| {
         bench_scene_gpu(&tracer, name, assets, state, settings)
     };
-    let reports: Vec<GpuTraceReport> = if args.scenes.is_empty() {
-        default_scenes(global, settings, &bench)?
-    } else {
-        args.scenes
-            .iter()
-            .map(|path| bench_file(path, global, &bench))
-            .collect::<anyhow::Result<_>>()?
-    };
+    let reports: Vec<GpuTraceReport> = scenes_of(args, global, settings, &bench)?;
     for r in reports {
         if args.json {
             println!("{}", serde_json::to_string(&r)?);
@@ -203,6 +189,20 @@ fn trace_gpu(args: &TraceArgs, global: &GlobalArgs, settings: TraceSettings) -> 
 
 /// A benchmark of one loaded scene (the CPU's or the GPU's).
 type BenchFn<'a, R> = dyn Fn(&str, Arc<Assets>, &SceneState) -> anyhow::Result<R> + 'a;
+
+/// The scenes `bench trace` measures: those named, or the default set.
+fn scenes_of<R>(
+    args: &TraceArgs,
+    global: &GlobalArgs,
+    settings: TraceSettings,
+    bench: &BenchFn<R>,
+) -> anyhow::Result<Vec<R>> {
+    if args.scenes.is_empty() {
+        default_scenes(global, settings, bench)
+    } else {
+        args.scenes.iter().map(|path| bench_file(path, global, bench)).collect()
+    }
+}
 
 fn bench_file<R>(path: &Path, global: &GlobalArgs, bench: &BenchFn<R>) -> anyhow::Result<R> {
     let resolver = AssetSearchPath::from_env(&global.assets, Some(path));
