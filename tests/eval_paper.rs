@@ -112,15 +112,28 @@ fn the_quick_evaluation_writes_a_complete_report_whose_stable_claims_hold() {
         fig8.iter().all(|r| r["final_hdr_flip"].as_f64().is_some_and(|e| e > 0.0 && e < 1.0)),
         "every fig8 grid has an HDR-FLIP"
     );
-    // Figure 5 compares like with like: frames of the current view, with one edit per frame.
+    // Figure 5 plays the path twice: as the paper's sequence (every frame with its own
+    // camera) and in the interactive default (frames of the current view compared).
     assert!(fig5["path_edits"].as_u64() > Some(10), "the camera path should move: {fig5}");
-    let moving = fig5["frames"]
+    let moving = |frames: &Value, current_only: bool| {
+        frames
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|f| (f["current"] == true || !current_only) && f["version"].as_u64() > Some(1))
+            .count()
+    };
+    let seq = moving(&fig5["frames"], false);
+    assert!(seq > 10, "fig5's sequence showed {seq} frames of a moving view");
+    let versions: std::collections::BTreeSet<u64> = fig5["frames"]
         .as_array()
         .into_iter()
         .flatten()
-        .filter(|f| f["current"] == true && f["version"].as_u64() > Some(1))
-        .count();
-    assert!(moving > 10, "fig5 showed {moving} frames of a moving view");
+        .filter_map(|f| f["version"].as_u64())
+        .collect();
+    assert!(versions.len() > 10, "fig5's sequence should carry one camera per frame: {versions:?}");
+    let int = moving(&fig5["interactive"]["frames"], true);
+    assert!(int > 10, "fig5's interactive session showed {int} frames of a moving view");
 
     // Beyond the paper: loopback always; the links where namespaces can be made (root).
     let lan = &section("lan")["data"];

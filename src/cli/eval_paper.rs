@@ -14,7 +14,7 @@ pub struct Common {
     /// Directory for the report, plots and images (created if needed).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// The reduced run (under 3 minutes on 2 cores) instead of the full one (about 30).
+    /// The reduced run (under 3 minutes on 2 cores) instead of the full one (about 20).
     #[arg(long)]
     pub quick: bool,
 }

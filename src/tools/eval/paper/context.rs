@@ -120,7 +120,7 @@ pub struct Options {
 }
 
 impl Options {
-    /// The full run (about 30 minutes on 2 cores) or `--quick` (under 3).
+    /// The full run (about 20 minutes on 2 cores) or `--quick` (under 3).
     pub fn new(quick: bool) -> Self {
         let path = scenes_dir().join("scripts").join("orbit.toml");
         if quick {

@@ -5,9 +5,9 @@ use gridlight_actors::master::Pacing;
 use serde_json::json;
 
 use super::context::{Context, Cores, Fig5};
-use super::grid::{run_session, FrameRecord, PathPacing, Session};
+use super::grid::{run_session, FrameRecord, Outcome, PathPacing, Session};
 use super::plot::{self, Chart, Series};
-use super::stats::correlation;
+use super::stats::{correlation, two_places};
 use super::{Claim, Section};
 use crate::simgrid::Availability;
 
@@ -28,6 +28,88 @@ fn moving_average(points: &[(f64, f64)], n: usize) -> Vec<(f64, f64)> {
 /// Seconds the session runs past the camera path's last edit.
 const HOLD_SECONDS: f64 = 1.0;
 
+/// Q_t of one session's frames against the resources, still and moving apart.
+struct Analysis {
+    /// (shown frame, Q_t) of the frames compared.
+    q: Vec<(f64, f64)>,
+    q_smooth: Vec<(f64, f64)>,
+    /// (shown frame, live workers the master counted when it showed the frame).
+    live: Vec<(f64, f64)>,
+    /// (shown frame, R_i at the frame's time).
+    curve: Vec<(f64, f64)>,
+    rho_raw: Option<f64>,
+    rho: Option<f64>,
+    /// Frames before the first edit's view.
+    still: usize,
+    rho_still: Option<f64>,
+    rho_moving: Option<f64>,
+    rho_moving_raw: Option<f64>,
+    mean_q_still: f64,
+    mean_q_moving: f64,
+    /// Frames left out: shown with a view an edit had outdated (latency-first only).
+    outdated: usize,
+    frames: Vec<FrameRecord>,
+    useful_fraction: f64,
+}
+
+impl Analysis {
+    /// `current_only`: compare only frames of the view that was newest when shown (a
+    /// frame an edit outdated is shown at once with what it has, so its Q_t measures the
+    /// edit's timing, not the resources).
+    fn of(out: &Outcome, current_only: bool, availability: &Availability, fps: f64) -> Self {
+        let frames: Vec<FrameRecord> =
+            out.frames.iter().filter(|f| f.current || !current_only).cloned().collect();
+        let outdated = out.frames.len() - frames.len();
+        let q: Vec<(f64, f64)> = frames.iter().enumerate().map(|(i, f)| (i as f64, f.q)).collect();
+        let live: Vec<(f64, f64)> =
+            frames.iter().enumerate().map(|(i, f)| (i as f64, f.workers as f64)).collect();
+        let pairs: Vec<(f64, f64)> = q.iter().zip(&live).map(|(a, b)| (a.1, b.1)).collect();
+        // A moving average over SMOOTH frames shows the trend under the per-frame noise of
+        // the modelled job times.
+        let q_smooth = moving_average(&q, SMOOTH);
+        let smooth_pairs: Vec<(f64, f64)> =
+            q_smooth.iter().zip(&live).map(|(a, b)| (a.1, b.1)).collect();
+        let first_version = frames.first().map_or(0, |f| f.version);
+        let still = frames.iter().take_while(|f| f.version == first_version).count();
+        // The curve itself at each frame's time (the grid follows it by its own clock,
+        // which started a fraction of a second earlier).
+        let curve = frames
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (i as f64, f64::from(availability.at((f.t * fps) as u64))))
+            .collect();
+        Self {
+            rho_raw: correlation(&pairs),
+            rho: correlation(&smooth_pairs),
+            rho_still: correlation(&smooth_pairs[..still]),
+            rho_moving: correlation(&smooth_pairs[still..]),
+            rho_moving_raw: correlation(&pairs[still..]),
+            mean_q_still: super::grid::mean(frames[..still].iter().map(|f| f.q)),
+            mean_q_moving: super::grid::mean(frames[still..].iter().map(|f| f.q)),
+            q,
+            q_smooth,
+            live,
+            curve,
+            still,
+            outdated,
+            useful_fraction: out.useful_fraction,
+            frames,
+        }
+    }
+
+    fn data(&self) -> serde_json::Value {
+        json!({
+            "correlation_q_r": self.rho, "correlation_q_r_raw": self.rho_raw,
+            "correlation_still": self.rho_still, "correlation_moving": self.rho_moving,
+            "correlation_moving_raw": self.rho_moving_raw, "still_frames": self.still,
+            "mean_q": super::grid::mean(self.frames.iter().map(|f| f.q)),
+            "mean_q_still": self.mean_q_still, "mean_q_moving": self.mean_q_moving,
+            "outdated_frames": self.outdated, "useful_fraction": self.useful_fraction,
+            "frames": self.frames,
+        })
+    }
+}
+
 pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
     ctx.step("fig5: preparing the camera path");
     let prepared = ctx
@@ -40,78 +122,54 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
         + path.len() as f64 / fps
         + HOLD_SECONDS;
     let availability = Availability { curve: p.curve, n: p.workers, period: p.period };
-    ctx.step(format!("fig5: {seconds:.0} s session, {} workers varying", p.workers));
-    let session = Session {
+    let session = |path_pacing| Session {
         availability,
         pacing: Pacing::FixedFps(p.fps),
         seconds,
         path: path.clone(),
-        path_pacing: PathPacing::PerFrame,
+        path_pacing,
         pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
         network: None,
         gold: None,
     };
-    let out = run_session(&ctx.exe, &prepared, &session)?;
-    // Like with like: the frames of the newest view, each given its fixed period. A frame
-    // an edit outdated is shown at once with what it has (the display never waits for an
-    // older view), so its Q_t measures the edit's timing, not the resources.
-    let current: Vec<&FrameRecord> = out.frames.iter().filter(|f| f.current).collect();
-    let outdated = out.frames.len() - current.len();
-    // Shown frame i of the measured sequence; the master's resources are the live
-    // workers it counted when it showed the frame (R_i as the grid delivered it).
-    let q: Vec<(f64, f64)> = current.iter().enumerate().map(|(i, f)| (i as f64, f.q)).collect();
-    let live: Vec<(f64, f64)> =
-        current.iter().enumerate().map(|(i, f)| (i as f64, f.workers as f64)).collect();
-    let pairs: Vec<(f64, f64)> = q.iter().zip(&live).map(|(a, b)| (a.1, b.1)).collect();
-    let rho_raw = correlation(&pairs);
-    // A moving average over SMOOTH frames shows the trend under the per-frame noise of
-    // the modelled job times.
-    let q_smooth = moving_average(&q, SMOOTH);
-    let smooth_pairs: Vec<(f64, f64)> =
-        q_smooth.iter().zip(&live).map(|(a, b)| (a.1, b.1)).collect();
-    let rho = correlation(&smooth_pairs);
-    // Still (before the first edit) and moving (from it on) apart.
-    let first_version = current.first().map_or(0, |f| f.version);
-    let still = current.iter().take_while(|f| f.version == first_version).count();
-    let rho_still = correlation(&smooth_pairs[..still]);
-    let rho_moving = correlation(&smooth_pairs[still..]);
-    let rho_moving_raw = correlation(&pairs[still..]);
-    let mean_q_still = super::grid::mean(current[..still].iter().map(|f| f.q));
-    let mean_q_moving = super::grid::mean(current[still..].iter().map(|f| f.q));
-    // The curve itself at each frame's time (the grid follows it by its own clock, which
-    // started a fraction of a second earlier).
-    let r: Vec<(f64, f64)> = current
-        .iter()
-        .enumerate()
-        .map(|(i, f)| (i as f64, f64::from(availability.at((f.t * fps) as u64))))
-        .collect();
+    ctx.step(format!("fig5: {seconds:.0} s sequence, {} workers varying", p.workers));
+    let sequence = run_session(&ctx.exe, &prepared, &session(PathPacing::Sequence))?;
+    ctx.step(format!("fig5: {seconds:.0} s interactive session, {} workers varying", p.workers));
+    let interactive = run_session(&ctx.exe, &prepared, &session(PathPacing::PerFrame))?;
+    let seq = Analysis::of(&sequence, false, &availability, fps);
+    let int = Analysis::of(&interactive, true, &availability, fps);
     plot::draw(
         &ctx.out.join("fig5.png"),
         &[
             Chart {
-                title: format!("Figure 5: Q_t at a fixed {} fps while resources vary (Cornell box, camera path)", p.fps),
+                title: format!(
+                    "Figure 5: Q_t at a fixed {} fps while resources vary (Cornell box, camera path)",
+                    p.fps
+                ),
                 x_label: "shown frame".into(),
                 y_label: "Q_t (jobs back / jobs)".into(),
                 series: vec![
-                    Series::new("Q_t", q.clone()),
-                    Series::new(format!("Q_t, mean of {SMOOTH} frames"), q_smooth.clone()),
+                    Series::new("Q_t, the paper's sequence", seq.q.clone()),
+                    Series::new(format!("Q_t, the paper's sequence, mean of {SMOOTH} frames"), seq.q_smooth.clone()),
+                    Series::new(
+                        format!("Q_t, interactive (latency first), mean of {SMOOTH} frames"),
+                        int.q_smooth.clone(),
+                    ),
                 ],
                 y_range: Some((0.0, 1.05)),
             },
             Chart {
-                title: format!("R_i = {0} − ({0}/4)·sin(2πi/{1})", p.workers, p.period),
+                title: format!("R_i = {0} − ({0}/4)·sin(2πi/{1}) (the paper's sequence)", p.workers, p.period),
                 x_label: "shown frame".into(),
                 y_label: "workers".into(),
                 series: vec![
-                    Series::new("R_i (the curve, by time)", r),
-                    Series::new("live workers when the frame was shown", live),
+                    Series::new("R_i (the curve, by time)", seq.curve.clone()),
+                    Series::new("live workers when the frame was shown", seq.live.clone()),
                 ],
                 y_range: None,
             },
         ],
     )?;
-    let rho_text = rho.map_or("undefined (Q_t constant)".to_string(), |v| format!("{v:.2}"));
-    let mean_q = out.mean_q;
     Ok(Section {
         id: "fig5".into(),
         title: "Figure 5: quality at a fixed frame rate with varying resources".into(),
@@ -122,22 +180,26 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
                 moves with R_i. No correlation is given; the curves track each other."
             .into(),
         ours: format!(
-            "The Cornell box with the recorded camera path `{}` ({} edits, at most one per \
-             frame period of the fixed rate), fixed {} fps, {} simulated workers varying as R_i \
-             (curve {:?}, period {} frames; {} connections open, those above R_i paused by the \
-             clock at the fixed rate). As in the paper's sequences the camera moves once per \
-             frame: the view holds still for {:.0} s, then the next edit is made as soon as a \
-             frame of the newest view is shown, so each view has one whole frame period on the \
-             grid (at a fixed rate the display waits its period for the new view's frames too, \
-             paper §4.3). Every edit still discards the older view's queued jobs, and a frame \
-             the edit outdated is shown at once with what it has: {outdated} such frames are \
-             left out of Q_t below (compared like with like: each frame of the view the user \
-             sees, against the resources of its period). {} frames of the current view shown, \
-             mean Q_t {mean_q_still:.2} still and {mean_q_moving:.2} moving, useful fraction \
-             {:.2}. Correlation of Q_t with the live workers the master counted: {} frame by \
-             frame, **{rho_text}** for Q_t averaged over {SMOOTH} frames; while the view is \
-             still (the first {still} frames) **{}**, while the camera moves **{}** ({} frame \
-             by frame).",
+            "The Cornell box with the recorded camera path `{}` ({} edits), fixed {} fps, {} \
+             simulated workers varying as R_i (curve {:?}, period {} frames; {} connections \
+             open, those above R_i paused by the clock at the fixed rate). The view holds still \
+             for {:.0} s, then the camera moves once per shown frame, as in the paper's \
+             sequences. Two sessions play the path:\n\n\
+             - **The paper's sequence** (plotted against R_i, and the claims below): each frame \
+             keeps the scene state it was scheduled with, as the paper's jobs carry their \
+             absolute state, and only jobs of frames already shown are discarded (§4.3); the \
+             next edit is made as soon as a frame is shown, so consecutive frames carry \
+             consecutive cameras. {} frames, mean Q_t {:.2} still and {:.2} moving, useful \
+             fraction {:.2}. Correlation of Q_t with the live workers the master counted: {} \
+             frame by frame, **{}** for Q_t averaged over {SMOOTH} frames; while the view is \
+             still (the first {} frames) **{}**, while the camera moves **{}** ({} frame by \
+             frame).\n\
+             - **gridlight's interactive default** (latency first): every edit discards the \
+             older view's queued jobs, so that the new view is shown as soon as possible; the \
+             next edit is made as soon as a frame of the newest view is shown, and the {} frames \
+             an edit outdated (shown at once with what they had) are left out. {} frames of the \
+             current view, mean Q_t {:.2} still and {:.2} moving, useful fraction {:.2}; \
+             correlation while still {}, while moving {}.",
             p.path.display(),
             path.len(),
             p.fps,
@@ -146,23 +208,43 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
             p.period,
             availability.peak(),
             path.first().map_or(0.0, |(at, _)| at.as_secs_f64()),
-            current.len(),
-            out.useful_fraction,
-            rho_raw.map_or("undefined".to_string(), |v| format!("{v:.2}")),
-            rho_still.map_or("undefined".to_string(), |v| format!("{v:.2}")),
-            rho_moving.map_or("undefined".to_string(), |v| format!("{v:.2}")),
-            rho_moving_raw.map_or("undefined".to_string(), |v| format!("{v:.2}")),
+            seq.frames.len(),
+            seq.mean_q_still,
+            seq.mean_q_moving,
+            seq.useful_fraction,
+            two_places(seq.rho_raw),
+            two_places(seq.rho),
+            seq.still,
+            two_places(seq.rho_still),
+            two_places(seq.rho_moving),
+            two_places(seq.rho_moving_raw),
+            int.outdated,
+            int.frames.len(),
+            int.mean_q_still,
+            int.mean_q_moving,
+            int.useful_fraction,
+            two_places(int.rho_still),
+            two_places(int.rho_moving),
         ),
         comparison: format!(
-            "{} Q_t while moving is lower than still: after each edit the workers first finish \
-             the job they are rendering (of the older view) before the new view's jobs reach \
-             them. We plot Q_t (the quantity the fixed rate trades away) rather than VDP \
-             against a 96-worker gold sequence. The fixed rate is chosen so that the grid \
-             cannot finish a frame in time (else Q_t would be 1 throughout): the paper's cores \
-             were slower than ours, see the note on modelled cores.",
-            match (rho_still, rho_moving) {
-                (Some(a), Some(b)) if a > 0.5 && b > 0.5 => "Agrees: Q_t follows the resources, still and moving.",
-                (Some(a), _) if a > 0.5 => "Agrees while the view is still: Q_t follows the resources; while the camera moves it follows them less closely in this run.",
+            "{} Where the grid can finish a frame within the period (R_i high), Q_t saturates \
+             at 1 and the correlation comes from the rest. gridlight's interactive default \
+             trades Q_t for latency while the camera moves: after each edit the workers first \
+             finish the job they are rendering (of the older view), and the jobs they had \
+             taken of the older view's later frames are dropped, so its moving Q_t is lower \
+             and follows the resources less. We plot Q_t (the quantity the fixed rate trades \
+             away) rather than VDP against a 96-worker gold sequence. The fixed rate is chosen \
+             so that the grid cannot always finish a frame in time (else Q_t would be 1 \
+             throughout): the paper's cores were slower than ours, see the note on modelled \
+             cores.",
+            match (seq.rho_still, seq.rho_moving) {
+                (Some(a), Some(b)) if a > 0.5 && b > 0.5 => {
+                    "Agrees: in the paper's sequence Q_t follows the resources, still and moving."
+                }
+                (Some(a), _) if a > 0.5 => {
+                    "Agrees while the view is still: Q_t follows the resources; while the camera \
+                     moves it follows them less closely in this run."
+                }
                 _ => "Differs: Q_t does not follow the resources in this run.",
             }
         ),
@@ -170,23 +252,31 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
         images: Vec::new(),
         claims: vec![
             Claim::new(
-                format!("while the view is still, Q_t ({SMOOTH}-frame mean) follows the resources (r > 0.5)"),
-                rho_still.is_some_and(|v| v > 0.5),
+                format!(
+                    "while the view is still, Q_t ({SMOOTH}-frame mean) follows the resources (r > 0.5)"
+                ),
+                seq.rho_still.is_some_and(|v| v > 0.5),
             ),
             Claim::new(
-                format!("while the camera moves, Q_t ({SMOOTH}-frame mean) follows the resources (r > 0.5)"),
-                rho_moving.is_some_and(|v| v > 0.5),
+                format!(
+                    "while the camera moves in the paper's sequence, Q_t ({SMOOTH}-frame mean) \
+                     follows the resources (r > 0.5)"
+                ),
+                seq.rho_moving.is_some_and(|v| v > 0.5),
             ),
         ],
-        data: json!({
-            "workers": p.workers, "fps": p.fps, "curve": p.curve, "period": p.period,
-            "correlation_q_r": rho, "correlation_q_r_raw": rho_raw, "smooth_frames": SMOOTH,
-            "correlation_still": rho_still, "correlation_moving": rho_moving, "still_frames": still,
-            "mean_q": mean_q, "mean_q_still": mean_q_still, "mean_q_moving": mean_q_moving,
-            "correlation_moving_raw": rho_moving_raw, "outdated_frames": outdated,
-            "useful_fraction": out.useful_fraction, "frames": out.frames,
-            "path_edits": path.len(), "seconds": seconds,
-        }),
+        data: {
+            let mut d = seq.data();
+            d["workers"] = json!(p.workers);
+            d["fps"] = json!(p.fps);
+            d["curve"] = json!(p.curve);
+            d["period"] = json!(p.period);
+            d["smooth_frames"] = json!(SMOOTH);
+            d["path_edits"] = json!(path.len());
+            d["seconds"] = json!(seconds);
+            d["interactive"] = int.data();
+            d
+        },
         seconds: 0.0,
     })
 }

@@ -167,8 +167,15 @@ pub enum PathPacing {
     Timed,
     /// As the paper's interactive sequences: the view holds until the path's first edit
     /// is due, then the next edit is made as soon as a frame of the newest view is shown,
-    /// so that each view gets one whole frame period on the grid.
+    /// so that each view gets one whole frame period on the grid. Every edit discards the
+    /// older view's queued jobs (the master's default, for edit-to-display latency).
     PerFrame,
+    /// As the paper renders its sequences (§4.3, §6.1): each frame keeps the scene state
+    /// it was scheduled with, since a job carries its absolute state, and only jobs of
+    /// frames already shown are discarded; the next edit is made as soon as any frame is
+    /// shown, so consecutive frames carry consecutive cameras and every frame has its
+    /// period on the grid.
+    Sequence,
 }
 
 /// One shown frame.
@@ -230,6 +237,7 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
     );
     config.pacing = session.pacing;
     config.pipeline = session.pipeline.max(1);
+    config.discard_stale_jobs = session.path_pacing != PathPacing::Sequence;
     let peak = session.availability.peak();
     config.max_connections = config.max_connections.max(peak as usize + 8);
     let records = Arc::new(Mutex::new(Vec::new()));
@@ -287,10 +295,18 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
             }
             std::thread::sleep(Duration::from_secs_f64(session.seconds));
         }
-        PathPacing::PerFrame => {
+        PathPacing::PerFrame | PathPacing::Sequence => {
             // Frames shown during the warm-up are not the path's.
             while shown_rx.try_recv().is_ok() {}
-            play_per_frame(&handle, &session.path, session.seconds, &shown_rx, &newest)?;
+            let newest_only = session.path_pacing == PathPacing::PerFrame;
+            play_per_frame(
+                &handle,
+                &session.path,
+                session.seconds,
+                &shown_rx,
+                &newest,
+                newest_only,
+            )?;
         }
     }
     let after = Sample::take(&handle);
@@ -325,14 +341,16 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
     })
 }
 
-/// Plays `path` one edit per shown frame of the newest view ([`PathPacing::PerFrame`]),
-/// from the path's first edit time on, for `seconds` in all.
+/// Plays `path` one edit per shown frame, from the path's first edit time on, for
+/// `seconds` in all: per frame of the newest view when `newest_only`
+/// ([`PathPacing::PerFrame`]), else per frame of any view ([`PathPacing::Sequence`]).
 fn play_per_frame(
     handle: &master::MasterHandle,
     path: &[(Duration, Edit)],
     seconds: f64,
     shown: &mpsc::Receiver<u64>,
     newest: &AtomicU64,
+    newest_only: bool,
 ) -> anyhow::Result<()> {
     let started = Instant::now();
     let end = started + Duration::from_secs_f64(seconds);
@@ -341,14 +359,17 @@ fn play_per_frame(
     let mut edits = path.iter().map(|(_, e)| e);
     let mut next = edits.next();
     while let Some(edit) = next {
+        // A frame shown before this edit does not answer it.
+        while shown.try_recv().is_ok() {}
         let version = handle.edit(edit.clone()).context("editing the camera")?;
         newest.fetch_max(version, Ordering::AcqRel);
         next = edits.next();
-        // Wait for a frame of this view (frames of older views are shown without waiting).
+        // Wait for a frame of this view (frames of older views are shown without waiting),
+        // or for any frame in a sequence.
         loop {
             let left = end.saturating_duration_since(Instant::now());
             match shown.recv_timeout(left) {
-                Ok(v) if v >= version => break,
+                Ok(v) if v >= version || !newest_only => break,
                 Ok(_) => continue,
                 Err(_) => return Ok(()),
             }

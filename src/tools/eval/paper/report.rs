@@ -7,6 +7,7 @@ use anyhow::Context as _;
 use serde_json::json;
 
 use super::context::{Context, PAPER_CORE_SAMPLES_PER_SECOND};
+use super::stats::two_places;
 use super::Section;
 
 /// Writes the three files for `sections` into the context's output directory.
@@ -129,13 +130,17 @@ fn closing(sections: &[Section]) -> String {
             "fig5" => {
                 let _ = writeln!(
                     s,
-                    "- Figure 5: correlation of Q_t ({}-frame mean) with the resources {} over the \
-                     whole session, {} while still, {} while moving (mean Q_t {:.2}).",
+                    "- Figure 5: correlation of Q_t ({}-frame mean) with the resources in the \
+                     paper's sequence {} over the whole session, {} while still, {} while moving \
+                     (mean Q_t {:.2}); gridlight's interactive default (latency first) {} while \
+                     moving (mean Q_t {:.2} moving).",
                     sec.data["smooth_frames"],
-                    sec.data["correlation_q_r"].as_f64().map_or("undefined".into(), |v| format!("{v:.2}")),
-                    sec.data["correlation_still"].as_f64().map_or("undefined".into(), |v| format!("{v:.2}")),
-                    sec.data["correlation_moving"].as_f64().map_or("undefined".into(), |v| format!("{v:.2}")),
-                    sec.data["mean_q"].as_f64().unwrap_or(0.0)
+                    two_places(sec.data["correlation_q_r"].as_f64()),
+                    two_places(sec.data["correlation_still"].as_f64()),
+                    two_places(sec.data["correlation_moving"].as_f64()),
+                    sec.data["mean_q"].as_f64().unwrap_or(0.0),
+                    two_places(sec.data["interactive"]["correlation_moving"].as_f64()),
+                    sec.data["interactive"]["mean_q_moving"].as_f64().unwrap_or(0.0)
                 );
             }
             "fig8" => {

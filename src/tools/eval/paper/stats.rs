@@ -18,6 +18,12 @@ pub fn correlation(pairs: &[(f64, f64)]) -> Option<f64> {
     (sxx > 0.0 && syy > 0.0).then(|| sxy / (sxx * syy).sqrt())
 }
 
+/// A correlation (or another optional number) for the report's text: two decimals, or
+/// "undefined".
+pub fn two_places(v: Option<f64>) -> String {
+    v.map_or("undefined".to_string(), |v| format!("{v:.2}"))
+}
+
 /// Median of `values` (0 when empty).
 pub fn median(values: &[f64]) -> f64 {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
