@@ -106,7 +106,9 @@ fn traversal(c: &mut Criterion, w: &Workload) {
     for (stage, rays) in [("closest_camera", &w.camera), ("closest_bounce", &w.bounce)] {
         group.throughput(Throughput::Elements(rays.len() as u64));
         group.bench_function(BenchmarkId::new(stage, &w.name), |b| {
-            b.iter(|| rays.iter().filter(|r| tlas.intersect(r.o, r.d, r.tmax).is_some()).count())
+            b.iter(|| {
+                rays.iter().filter_map(|r| black_box(tlas.intersect(r.o, r.d, r.tmax))).count()
+            })
         });
     }
     group.throughput(Throughput::Elements(w.shadow.len() as u64));
@@ -164,10 +166,13 @@ fn shading(c: &mut Criterion) {
     for (name, kind, roughness) in kinds {
         let bsdf = Bsdf::new(kind, Vec3::new(0.7, 0.5, 0.3), roughness, 1.5);
         group.bench_function(BenchmarkId::new("sample", name), |b| {
-            b.iter(|| inputs.iter().filter_map(|(wo, u)| bsdf.sample(*wo, *u)).count())
+            // black_box keeps the sampled values alive (not only whether there is one).
+            b.iter(|| inputs.iter().filter_map(|(wo, u)| black_box(bsdf.sample(*wo, *u))).count())
         });
         group.bench_function(BenchmarkId::new("eval", name), |b| {
-            b.iter(|| inputs.windows(2).map(|p| bsdf.eval(p[0].0, p[1].0).1).sum::<f32>())
+            b.iter(|| {
+                inputs.windows(2).map(|p| black_box(bsdf.eval(p[0].0, p[1].0)).1).sum::<f32>()
+            })
         });
     }
     group.finish();
