@@ -107,9 +107,10 @@ fn closest<'a>(scene: &'a RenderScene, o: Vec3, d: Vec3) -> Option<Hit<'a>> {
     Some(Hit::Surface(Surface { p: o + d * hit.t, ng, ns, uv, material, object: inst.object }))
 }
 
-/// Offsets a ray origin off the surface to the side `dir` leaves towards.
+/// Offsets a ray origin off the surface to the side `dir` leaves towards (public for the
+/// stage benchmarks, which cast the kernel's rays).
 #[inline]
-fn offset(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
+pub fn offset(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
     let eps = 1e-4 * (1.0 + p.abs().max_element());
     if ng.dot(dir) >= 0.0 {
         p + ng * eps
@@ -508,17 +509,27 @@ mod tests {
             );
             return;
         }
+        // The last case textures the walls (uvs 0..1 reach both ends of the texel wrap).
         let kinds = [
-            (MaterialKind::Diffuse, 1.0),
-            (MaterialKind::Conductor, 0.3),
-            (MaterialKind::Glossy, 0.2),
-            (MaterialKind::Dielectric, 0.0),
-            (MaterialKind::Dielectric, 0.4),
+            (MaterialKind::Diffuse, 1.0, false),
+            (MaterialKind::Conductor, 0.3, false),
+            (MaterialKind::Glossy, 0.2, false),
+            (MaterialKind::Dielectric, 0.0, false),
+            (MaterialKind::Dielectric, 0.4, false),
+            (MaterialKind::Diffuse, 1.0, true),
         ];
-        for (kind, roughness) in kinds {
+        for (kind, roughness, textured) in kinds {
             let (assets, mut state) = testscenes::cornell_box(40, 30);
             state.materials[0].kind = kind;
             state.materials[0].roughness = roughness;
+            let mut assets = (*assets).clone();
+            if textured {
+                let texels = (0..15).map(|i| Vec3::new(0.2, (i % 4) as f32 / 4.0, 0.7)).collect();
+                let texture = crate::assets::Texture { width: 5, height: 3, texels };
+                assets.textures.insert("checker.png".into(), std::sync::Arc::new(texture));
+                state.materials[0].base_color_texture = Some("checker.png".into());
+            }
+            let assets = std::sync::Arc::new(assets);
             state.environment = Some(gridlight_actors::state::Environment {
                 color: Vec3::new(0.3, 0.4, 0.5),
                 intensity: 1.0,

@@ -207,6 +207,16 @@ impl RenderScene {
         Ok(())
     }
 
+    /// The two-level BVH (for the stage benchmarks in `benches/stages.rs`).
+    pub fn tlas(&self) -> &Tlas {
+        &self.tlas
+    }
+
+    /// The lights as the kernel samples them (for the stage benchmarks).
+    pub fn lights(&self) -> &Lights {
+        &self.lights
+    }
+
     pub fn state(&self) -> &SceneState {
         &self.state
     }

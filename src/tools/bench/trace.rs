@@ -51,6 +51,8 @@ pub struct TraceReport {
     pub cpu_seconds: f64,
     /// Samples per CPU second of that run.
     pub samples_per_cpu_second: f64,
+    /// Rays per CPU second of that run: the per-core ray rate on a loaded machine.
+    pub rays_per_cpu_second: f64,
     pub samples: u64,
     pub rays: u64,
     pub runs: u32,
@@ -79,12 +81,13 @@ pub fn bench_scene(
         let (start, start_cpu) = (Instant::now(), thread_cpu_seconds());
         let stats = render_pixels_counted(&scene, run as u64, &pixels, &mut out, Strategy::NeeMis);
         runs.push((start.elapsed().as_secs_f64(), stats));
-        cpu.push(thread_cpu_seconds() - start_cpu);
+        cpu.push((thread_cpu_seconds() - start_cpu, stats));
     }
     runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    cpu.sort_by(f64::total_cmp);
     let (seconds, stats) = runs[runs.len() / 2];
-    let cpu_seconds = cpu[cpu.len() / 2];
+    // Rays of the run with the median CPU time (each run traces another frame).
+    cpu.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (cpu_seconds, cpu_stats) = cpu[cpu.len() / 2];
     Ok(TraceReport {
         scene: name.to_string(),
         samples_per_second_per_core: stats.samples as f64 / seconds,
@@ -96,7 +99,8 @@ pub fn bench_scene(
         max_depth: settings.max_depth,
         seconds,
         cpu_seconds,
-        samples_per_cpu_second: stats.samples as f64 / cpu_seconds,
+        samples_per_cpu_second: cpu_stats.samples as f64 / cpu_seconds,
+        rays_per_cpu_second: cpu_stats.rays as f64 / cpu_seconds,
         samples: stats.samples,
         rays: stats.rays,
         runs: settings.runs.max(1),
@@ -118,9 +122,15 @@ mod tests {
         assert_eq!(r.triangles, 36);
         assert!(r.samples_per_second_per_core > 0.0);
         assert!(r.cpu_seconds > 0.0 && r.samples_per_cpu_second > 0.0);
+        assert!(r.rays_per_cpu_second >= r.samples_per_cpu_second);
         let json = serde_json::to_value(&r).unwrap();
-        for key in ["scene", "samples_per_second_per_core", "rays_per_second_per_core", "triangles"]
-        {
+        for key in [
+            "scene",
+            "samples_per_second_per_core",
+            "rays_per_second_per_core",
+            "rays_per_cpu_second",
+            "triangles",
+        ] {
             assert!(json.get(key).is_some(), "missing {key}");
         }
     }
