@@ -84,10 +84,13 @@ pub enum Image {
     Device(DeviceImage),
 }
 
+/// A composed frame's pixels on the CPU: display RGBA, and the linear colour for the final
+/// view.
+pub type HostPixels = (Vec<[u8; 4]>, Option<Vec<Vec3>>);
+
 impl Image {
-    /// The pixels on the CPU (an [`Image::Device`] is read back): display RGBA, and the
-    /// linear colour for the final view.
-    pub fn into_host(self) -> Result<(Vec<[u8; 4]>, Option<Vec<Vec3>>), ComposeError> {
+    /// The pixels on the CPU (an [`Image::Device`] is read back).
+    pub fn into_host(self) -> Result<HostPixels, ComposeError> {
         match self {
             Image::Host { rgba, linear } => Ok((rgba, linear)),
             Image::Device(image) => {

@@ -22,10 +22,13 @@ pub enum FrameImage {
     Device(DeviceImage),
 }
 
+/// A frame's picture and, for the final view, its linear colour, on the CPU.
+pub type HostFrame = (Picture, Option<Arc<Vec<Vec3>>>);
+
 impl FrameImage {
     /// The picture and linear colour on the CPU, for screenshots: a device image is read
     /// back here (once per screenshot, never per frame).
-    pub fn to_host(&self) -> Result<(Picture, Option<Arc<Vec<Vec3>>>), String> {
+    pub fn to_host(&self) -> Result<HostFrame, String> {
         match self {
             FrameImage::Picture { picture, linear } => Ok((picture.clone(), linear.clone())),
             FrameImage::Device(image) => {
