@@ -37,11 +37,8 @@ impl GpuContext {
     /// reconstruct`: 183 ms against 36 ms per 640×480 frame on 2 cores).
     pub fn new_hardware() -> Result<Self, GpuError> {
         let ctx = Self::new()?;
-        if ctx.adapter_info.device_type == wgpu::DeviceType::Cpu {
-            return Err(GpuError::NoAdapter(format!(
-                "{} is a software adapter; the CPU path is faster",
-                ctx.adapter_info.name
-            )));
+        if ctx.is_software() {
+            return Err(ctx.software());
         }
         Ok(ctx)
     }
@@ -61,20 +58,34 @@ impl GpuContext {
             })
             .await
             .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let adapter_info = adapter.get_info();
+        Self::check_storage(&adapter)?;
+        Self::on_adapter(&adapter, "gridlight").await
+    }
+
+    /// `Err` unless `adapter` can write the `rgba32float` storage textures the
+    /// reconstruction passes write.
+    pub fn check_storage(adapter: &wgpu::Adapter) -> Result<(), GpuError> {
         let formats = adapter.get_texture_format_features(wgpu::TextureFormat::Rgba32Float);
         if !formats.allowed_usages.contains(wgpu::TextureUsages::STORAGE_BINDING) {
             return Err(GpuError::Unsupported(format!(
                 "rgba32float storage textures on `{}`",
-                adapter_info.name
+                adapter.get_info().name
             )));
         }
+        Ok(())
+    }
+
+    /// Opens a device on `adapter` with what the passes use where it is offered
+    /// (timestamps, the adapter's largest storage buffers). The window opens its device
+    /// here too, so that the reconstruction can run on it (`crate::gpu::offer`).
+    pub async fn on_adapter(adapter: &wgpu::Adapter, label: &str) -> Result<Self, GpuError> {
+        let adapter_info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let required_features =
             if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
-                label: Some("gridlight"),
+                label: Some(label),
                 required_features,
                 // Storage buffers as large as the adapter allows: the GPU path tracer's
                 // scene is one buffer, larger than the default 128 MiB for big meshes.
@@ -94,6 +105,20 @@ impl GpuContext {
             })?;
         tracing::debug!(adapter = %adapter_info.name, backend = ?adapter_info.backend, timestamps, "GPU context");
         Ok(Self { device, queue, adapter_info, timestamps })
+    }
+
+    /// Why `Auto` choices pass over this (software) adapter.
+    pub fn software(&self) -> GpuError {
+        GpuError::NoAdapter(format!(
+            "{} is a software adapter; the CPU path is faster",
+            self.adapter_info.name
+        ))
+    }
+
+    /// Whether the adapter is a software rasteriser (Mesa's lavapipe/llvmpipe), where the
+    /// CPU reconstruction is faster ([`GpuContext::new_hardware`]).
+    pub fn is_software(&self) -> bool {
+        self.adapter_info.device_type == wgpu::DeviceType::Cpu
     }
 
     /// Shared handle for several passes.

@@ -1,14 +1,17 @@
 //! Device plumbing of the master's GPU work: the wgpu context, the [`Backend`] choice,
-//! compute passes as small structs, readback and textures. It knows no pass: the passes
-//! and their WGSL live with their owners (`crate::reconstruct::pass`, `crate::gbuffer`).
+//! compute passes as small structs, readback and textures, and the device the window
+//! offers the reconstruction (`offer`). It knows no pass: the passes and their WGSL live
+//! with their owners (`crate::reconstruct::pass`, `crate::gbuffer`).
 
 mod backend;
 pub mod compute;
 pub mod context;
+pub mod offer;
 pub mod readback;
 
 pub use backend::Backend;
 pub use context::{GpuContext, GpuError};
+pub use offer::DeviceOffer;
 
 /// A 2-D texture (array of `layers`) without mipmaps or multisampling: every texture the
 /// passes make.

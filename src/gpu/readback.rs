@@ -89,3 +89,30 @@ impl Staging {
         Ok(())
     }
 }
+
+impl Staging {
+    /// [`Staging::read`] of an `rgba32float` copy: each texel's RGB.
+    pub fn read_vec3(&self, device: &wgpu::Device) -> Result<Vec<glam::Vec3>, GpuError> {
+        let w = self.width as usize;
+        let mut out = vec![glam::Vec3::ZERO; w * self.height as usize];
+        self.read(device, |y, row| {
+            let texels: &[[f32; 4]] = bytemuck::cast_slice(row);
+            for (o, t) in out[y * w..(y + 1) * w].iter_mut().zip(texels) {
+                *o = glam::Vec3::new(t[0], t[1], t[2]);
+            }
+        })?;
+        Ok(out)
+    }
+
+    /// [`Staging::read`] of an `rgba8` copy: each texel's four bytes.
+    pub fn read_rgba8(&self, device: &wgpu::Device) -> Result<Vec<[u8; 4]>, GpuError> {
+        let w = self.width as usize;
+        let mut out = vec![[0; 4]; w * self.height as usize];
+        self.read(device, |y, row| {
+            for (o, t) in out[y * w..(y + 1) * w].iter_mut().zip(row.chunks_exact(4)) {
+                *o = [t[0], t[1], t[2], t[3]];
+            }
+        })?;
+        Ok(out)
+    }
+}

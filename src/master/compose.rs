@@ -13,7 +13,10 @@
 //! 0.7–1.0 % brighter than `gridlight render`; `tests/master_matches_render.rs`.)
 //!
 //! One composer serves both the headless sink and the window, so that what a headless
-//! master writes is exactly what the window shows. Every frame is reconstructed, whatever
+//! master writes is exactly what the window shows. A window composer is given the
+//! window's device ([`Composer::with_window_device`]): GPU reconstruction then runs on it
+//! and the final view stays there ([`Image::Device`]) for the window to draw, with no
+//! read-back; the diagnostic views are made on the CPU from the frame's planes. Every frame is reconstructed, whatever
 //! the view, so that the temporal history and the accumulation stay complete when the user
 //! switches back to the final view.
 
@@ -30,9 +33,11 @@ use crate::assets::Assets;
 use crate::gbuffer::ahead::GBufferAhead;
 use crate::gbuffer::emission::area_mean_emission;
 use crate::gbuffer::{GBuffer, GBufferError, GBufferSource};
-use crate::gpu::Backend;
+use crate::gpu::{Backend, DeviceOffer};
 use crate::master::view::{self, View, ViewInputs};
-use crate::reconstruct::{FrameInputs, ReconstructError, ReconstructParams, Reconstructor};
+use crate::reconstruct::{
+    DeviceImage, ForDisplay, FrameInputs, ReconstructError, ReconstructParams, Reconstructor,
+};
 
 /// The G-buffers of a run's frames, shared with whoever picks objects in the shown frame's
 /// scene (the window): picking reads the same render scene the G-buffer was made from.
@@ -51,17 +56,49 @@ pub enum ComposeError {
     Thread(std::io::Error),
 }
 
+/// How long a window composer waits for the window to offer its device (it opens it as
+/// the window appears, normally well before the first frame).
+const WINDOW_DEVICE_WAIT: std::time::Duration = std::time::Duration::from_secs(30);
+
 /// One composed frame.
 #[derive(Clone, Debug)]
 pub struct Composed {
     pub width: u32,
     pub height: u32,
-    /// The chosen view, display-encoded RGBA (tonemapped sRGB for colour views).
-    pub rgba: Vec<[u8; 4]>,
-    /// Final linear colour (albedo · radiance + emission), only for the final view.
-    pub linear: Option<Vec<Vec3>>,
+    pub image: Image,
     /// Where the compose time went (written to `stats.jsonl`).
     pub timings: ComposeTimings,
+}
+
+/// The pixels of a composed frame.
+#[derive(Clone, Debug)]
+pub enum Image {
+    /// On the CPU.
+    Host {
+        /// The chosen view, display-encoded RGBA (tonemapped sRGB for colour views).
+        rgba: Vec<[u8; 4]>,
+        /// Final linear colour (albedo · radiance + emission), only for the final view.
+        linear: Option<Vec<Vec3>>,
+    },
+    /// The final view, left on the window's device by the GPU reconstruction.
+    Device(DeviceImage),
+}
+
+/// A composed frame's pixels on the CPU: display RGBA, and the linear colour for the final
+/// view.
+pub type HostPixels = (Vec<[u8; 4]>, Option<Vec<Vec3>>);
+
+impl Image {
+    /// The pixels on the CPU (an [`Image::Device`] is read back).
+    pub fn into_host(self) -> Result<HostPixels, ComposeError> {
+        match self {
+            Image::Host { rgba, linear } => Ok((rgba, linear)),
+            Image::Device(image) => {
+                let (rgba, linear) = image.read_back().map_err(ReconstructError::from)?;
+                Ok((rgba, Some(linear)))
+            }
+        }
+    }
 }
 
 /// Milliseconds each step of one compose took: what the edit-to-display latency spends on
@@ -91,6 +128,11 @@ pub struct Composer {
     demodulated: Vec<Vec3>,
     /// The G-buffer of the state being accumulated, its emission as pixel area means.
     converging: Option<(StateVersion, Arc<GBuffer>)>,
+    /// The window's device, once offered ([`Composer::with_window_device`]).
+    window_device: Option<DeviceOffer>,
+    /// The device the final view is left on: the window's, when the reconstruction runs
+    /// there.
+    display_device: Option<wgpu::Device>,
 }
 
 impl Composer {
@@ -113,7 +155,23 @@ impl Composer {
             reconstructor: None,
             demodulated: Vec::new(),
             converging: None,
+            window_device: None,
+            display_device: None,
         })
+    }
+
+    /// GPU reconstruction (`--reconstruct gpu`, or `auto` on a hardware adapter) runs on
+    /// the device the window offers, and the final view stays there for the window to
+    /// draw. Without an offer in time, the reconstruction opens its own device and reads
+    /// its frames back.
+    pub fn with_window_device(mut self, offer: DeviceOffer) -> Self {
+        self.window_device = Some(offer);
+        self
+    }
+
+    /// Frames read back from the GPU reconstruction so far.
+    pub fn read_backs(&self) -> u64 {
+        self.reconstructor.as_ref().map_or(0, Reconstructor::read_backs)
     }
 
     /// The G-buffer source, whose render scene is the last composed frame's (for picking).
@@ -148,10 +206,10 @@ impl Composer {
             return Err(ComposeError::Size { width, height });
         }
         demodulate(&frame.current, &g.albedo, &mut self.demodulated);
-        let reconstructor = match &mut self.reconstructor {
-            Some(r) => r,
-            empty => empty.insert(Reconstructor::new(width, height, self.params, self.backend)?),
-        };
+        if self.reconstructor.is_none() {
+            self.reconstructor = Some(self.new_reconstructor(width, height)?);
+        }
+        let reconstructor = self.reconstructor.as_mut().expect("made above");
         let inputs = FrameInputs {
             frame: frame.frame,
             state_version: frame.state.version,
@@ -160,12 +218,20 @@ impl Composer {
             mask: &frame.current_mask,
             gbuffer: &g,
         };
-        let out = reconstructor.reconstruct(&inputs)?;
+        let out = match &self.display_device {
+            Some(device) => reconstructor.reconstruct_for_display(&inputs, device)?,
+            None => ForDisplay::Host(reconstructor.reconstruct(&inputs)?),
+        };
         timings.reconstruct_ms = ms(reconstructing);
         if view == View::Final {
             timings.compose_ms = ms(started);
-            let linear = Some(out.colour);
-            return Ok(Composed { width, height, rgba: out.display, linear, timings });
+            let image = match out {
+                ForDisplay::Host(out) => {
+                    Image::Host { rgba: out.display, linear: Some(out.colour) }
+                }
+                ForDisplay::Device(image) => Image::Device(image),
+            };
+            return Ok(Composed { width, height, image, timings });
         }
         let owner = if view == View::Workers {
             frame.owners.per_pixel(frame.current.len())
@@ -187,7 +253,32 @@ impl Composer {
             view::diagnostic(view, &planes, |c| crate::reconstruct::tonemap::to_rgba8(c, exposure))
                 .ok_or(ComposeError::Size { width, height })?;
         timings.compose_ms = ms(started);
-        Ok(Composed { width, height, rgba, linear: None, timings })
+        Ok(Composed { width, height, image: Image::Host { rgba, linear: None }, timings })
+    }
+
+    /// The reconstructor for the first frame: on the window's device when one is offered
+    /// and the backend asks for a GPU (the CPU backend never waits for the offer).
+    fn new_reconstructor(
+        &mut self,
+        width: u32,
+        height: u32,
+    ) -> Result<Reconstructor, ComposeError> {
+        let device = match (&self.window_device, self.backend) {
+            (None, _) | (Some(_), Backend::Cpu) => None,
+            (Some(offer), _) => {
+                let device = offer.wait(WINDOW_DEVICE_WAIT);
+                if device.is_none() {
+                    tracing::warn!("the window offered no device: reconstruction reads back");
+                }
+                device
+            }
+        };
+        let r = Reconstructor::new(width, height, self.params, self.backend, device.clone())?;
+        if let (Reconstructor::Gpu(_), Some(ctx)) = (&r, device) {
+            tracing::info!(adapter = %ctx.adapter_info.name, "reconstructing on the window's device");
+            self.display_device = Some(ctx.device.clone());
+        }
+        Ok(r)
     }
 }
 
@@ -292,16 +383,16 @@ mod tests {
         // Every other pixel lost: the final view must cover them from their neighbours.
         let f = frame(&state, |i| i % 2 == 0);
         let g = c.gbuffers.write().unwrap().get(&state).unwrap();
-        let partial = c.compose(&f, View::Partial).unwrap();
-        let last = c.compose(&f, View::Final).unwrap();
-        assert!(last.linear.is_some() && partial.linear.is_none());
+        let (partial, no_linear) = c.compose(&f, View::Partial).unwrap().image.into_host().unwrap();
+        let (last, linear) = c.compose(&f, View::Final).unwrap().image.into_host().unwrap();
+        assert!(linear.is_some() && no_linear.is_none());
         let hit_holes: Vec<usize> = (0..g.len())
             .filter(|&i| i % 2 == 1 && g.object[i] != crate::gbuffer::NO_OBJECT)
             .collect();
         assert!(hit_holes.len() > 50, "the box's surfaces cover most holes");
         for &i in &hit_holes {
-            assert_eq!(partial.rgba[i], [0, 0, 0, 255], "pixel {i}: a hole in the partial view");
-            assert_ne!(last.rgba[i], [0, 0, 0, 255], "pixel {i}: filled in the final view");
+            assert_eq!(partial[i], [0, 0, 0, 255], "pixel {i}: a hole in the partial view");
+            assert_ne!(last[i], [0, 0, 0, 255], "pixel {i}: filled in the final view");
         }
     }
 
@@ -319,7 +410,7 @@ mod tests {
         c.compose(&f, View::Final).unwrap(); // the first frame of a state is filtered
         f.frame = 2;
         f.stats.accumulated_frames = 2; // as the frame assembler decides it
-        let out = c.compose(&f, View::Final).unwrap().linear.unwrap();
+        let out = c.compose(&f, View::Final).unwrap().image.into_host().unwrap().1.unwrap();
         // Accumulating: the emission is the pixel-area mean (`gbuffer::emission`).
         let area = Arc::clone(&c.converging.as_ref().expect("an accumulating G-buffer").1);
         for (i, got) in out.iter().enumerate() {

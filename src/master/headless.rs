@@ -122,12 +122,13 @@ impl HeadlessSink {
         // file is not showing it): the edit latency ends here, as the window's ends when
         // the picture is presented.
         frame.stats.stamp_edit_latency(std::time::Instant::now());
+        let timings = composed.timings;
         if let Some(dir) = &self.options.out_dir {
             let (w, h) = (composed.width, composed.height);
+            let (rgba, linear) = composed.image.into_host().map_err(|e| e.to_string())?;
             let path = frame_path(dir, frame.frame);
-            crate::image_io::write_png_rgba8(&path, w, h, &composed.rgba)
-                .map_err(|e| e.to_string())?;
-            if let (true, Some(linear)) = (self.options.exr, &composed.linear) {
+            crate::image_io::write_png_rgba8(&path, w, h, &rgba).map_err(|e| e.to_string())?;
+            if let (true, Some(linear)) = (self.options.exr, &linear) {
                 let path = path.with_extension("exr");
                 crate::image_io::write_exr(&path, w, h, linear).map_err(|e| e.to_string())?;
             }
@@ -138,8 +139,7 @@ impl HeadlessSink {
             }
         }
         if let Some(stats) = &mut self.stats {
-            let line =
-                StatsLine { frame: &frame.stats, edit_to_decision_ms, compose: composed.timings };
+            let line = StatsLine { frame: &frame.stats, edit_to_decision_ms, compose: timings };
             let line = serde_json::to_string(&line).map_err(|e| e.to_string())?;
             writeln!(stats, "{line}")
                 .and_then(|()| stats.flush())

@@ -4,16 +4,18 @@
 //!
 //! Per frame: upload this frame's samples (and the G-buffer when the scene state changed),
 //! then accumulate → fill → [temporal → Gaussian while interacting] → remodulate, copy the
-//! filled radiance and G-buffer into the history layers, and read the results back.
-//! Running sums ping-pong between two textures; history lives in texture arrays.
+//! filled radiance and G-buffer into the history layers, and read the results back
+//! ([`GpuReconstructor::reconstruct`]) or leave them on the device for a window that
+//! shares it ([`GpuReconstructor::reconstruct_on_device`]). Running sums ping-pong
+//! between two textures; history lives in texture arrays; each frame's colour and
+//! display image go to a target of their own (`display_target`).
 
 use std::sync::Arc;
 
-use glam::Vec3;
-
+use super::device_image::DeviceImage;
+use super::display_target::{DisplayTarget, TargetPool};
 use super::history::HistoryRing;
 use super::params::MAX_HISTORY;
-use super::pass::remodulate::DISPLAY;
 use super::pass::{self, PassConsts, Uniforms};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
 use crate::gpu::compute::ComputePass;
@@ -34,8 +36,6 @@ struct Textures {
     filled: wgpu::Texture,
     blended: wgpu::Texture,
     filtered: wgpu::Texture,
-    colour: wgpu::Texture,
-    display: wgpu::Texture,
     past_radiance: wgpu::Texture,
     past_normal: wgpu::Texture,
     past_position: wgpu::Texture,
@@ -60,12 +60,40 @@ impl Textures {
             filled: make("filled", F32X4, 1, work),
             blended: make("blended", F32X4, 1, work),
             filtered: make("filtered", F32X4, 1, work),
-            colour: make("colour", F32X4, 1, U::STORAGE_BINDING | U::COPY_SRC),
-            display: make("display", DISPLAY, 1, U::STORAGE_BINDING | U::COPY_SRC),
             past_radiance: make("past radiance", F32X4, MAX_HISTORY, past),
             past_normal: make("past normal", F32X4, MAX_HISTORY, past),
             past_position: make("past position", F32X4, MAX_HISTORY, past),
         }
+    }
+}
+
+impl Textures {
+    /// Remodulate's bind groups into a target's `colour` and `display` views: `[0]` from
+    /// the filtered radiance, `[1]` from the filled one.
+    fn remodulate(
+        &self,
+        device: &wgpu::Device,
+        pass: &ComputePass,
+        uniforms: &wgpu::Buffer,
+        colour: &wgpu::TextureView,
+        display: &wgpu::TextureView,
+    ) -> [wgpu::BindGroup; 2] {
+        use wgpu::BindingResource::TextureView as V;
+        let (albedo, emission) = (view(&self.albedo), view(&self.emission));
+        let bind = |src: &wgpu::TextureView| {
+            pass.bind(
+                device,
+                &[
+                    uniforms.as_entire_binding(),
+                    V(src),
+                    V(&albedo),
+                    V(&emission),
+                    V(colour),
+                    V(display),
+                ],
+            )
+        };
+        [bind(&view(&self.filtered)), bind(&view(&self.filled))]
     }
 }
 
@@ -102,15 +130,14 @@ impl Passes {
     }
 }
 
-/// Bind groups for one set of textures; index `[p]` is the ping-pong parity or, for
-/// remodulate, `[0]` = from the filtered and `[1]` = from the filled radiance.
+/// Bind groups for one set of textures; index `[p]` is the ping-pong parity. Remodulate's
+/// are per display target ([`Textures::remodulate`]).
 #[derive(Debug)]
 struct BindGroups {
     accumulate: [wgpu::BindGroup; 2],
     fill: [wgpu::BindGroup; 2],
     temporal: wgpu::BindGroup,
     gaussian: wgpu::BindGroup,
-    remodulate: [wgpu::BindGroup; 2],
 }
 
 impl BindGroups {
@@ -121,16 +148,10 @@ impl BindGroups {
         let sums = [view(&t.sums[0]), view(&t.sums[1])];
         let (samples, filled, blended, filtered) =
             (view(&t.samples), view(&t.filled), view(&t.blended), view(&t.filtered));
-        let (albedo, emission, colour, display) =
-            (view(&t.albedo), view(&t.emission), view(&t.colour), view(&t.display));
         let accumulate =
             |k: usize| p.accumulate.bind(device, &[u(), V(&samples), V(&sums[k]), V(&sums[1 - k])]);
         let fill = |k: usize| {
             p.fill.bind(device, &[u(), V(&sums[1 - k]), V(&normal), V(&position), V(&filled)])
-        };
-        let remodulate = |src: &wgpu::TextureView| {
-            p.remodulate
-                .bind(device, &[u(), V(src), V(&albedo), V(&emission), V(&colour), V(&display)])
         };
         let (past_radiance, past_normal, past_position) = (
             array_view(&t.past_radiance),
@@ -156,7 +177,6 @@ impl BindGroups {
             gaussian: p
                 .gaussian
                 .bind(device, &[u(), V(&blended), V(&normal), V(&position), V(&filtered)]),
-            remodulate: [remodulate(&filtered), remodulate(&filled)],
         }
     }
 }
@@ -227,9 +247,13 @@ pub struct GpuReconstructor {
     passes: Passes,
     textures: Textures,
     groups: BindGroups,
+    /// Colour and display images of frames, one per frame still held by someone.
+    targets: TargetPool,
     staging: [Staging; 3],
     timer: Option<Timer>,
     last_gpu_ms: Option<f64>,
+    /// Frames whose results were copied back to the CPU ([`GpuReconstructor::read_backs`]).
+    read_backs: u64,
 }
 
 impl GpuReconstructor {
@@ -267,9 +291,11 @@ impl GpuReconstructor {
             passes,
             textures,
             groups,
+            targets: TargetPool::default(),
             staging,
             timer,
             last_gpu_ms: None,
+            read_backs: 0,
             ctx,
         })
     }
@@ -288,6 +314,7 @@ impl GpuReconstructor {
         self.textures = Textures::new(device, width, height);
         self.groups = BindGroups::new(device, &self.passes, &self.textures, &self.uniforms);
         self.staging = Self::stagings(device, width, height);
+        self.targets.clear();
         (self.width, self.height) = (width, height);
         self.ring = HistoryRing::new(self.params.history);
         self.gbuffer_version = None;
@@ -297,13 +324,60 @@ impl GpuReconstructor {
         &self.ctx.adapter_info.name
     }
 
-    /// GPU time of the last frame's passes in milliseconds (timestamps), if supported.
+    /// Frames whose results were read back to the CPU so far: one per
+    /// [`GpuReconstructor::reconstruct`], none for [`GpuReconstructor::reconstruct_on_device`].
+    pub fn read_backs(&self) -> u64 {
+        self.read_backs
+    }
+
+    /// The device the pipeline runs on.
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    /// GPU time of the last frame's passes in milliseconds (timestamps), if supported;
+    /// only read-back frames measure it (reading the timestamps is a read-back too).
     pub fn last_gpu_ms(&self) -> Option<f64> {
         self.last_gpu_ms
     }
 
-    /// Runs the pipeline on one frame.
+    /// Runs the pipeline on one frame and reads its results back.
     pub fn reconstruct(&mut self, inputs: &FrameInputs) -> Result<Reconstructed, ReconstructError> {
+        let (target, mode, mut encoder) = self.encode(inputs)?;
+        let result = match mode {
+            Mode::Interacting => &self.textures.filtered,
+            Mode::Accumulating { .. } => &self.textures.filled,
+        };
+        self.staging[0].copy_from(&mut encoder, result);
+        self.staging[1].copy_from(&mut encoder, &target.colour);
+        self.staging[2].copy_from(&mut encoder, &target.display);
+        if let Some(t) = &self.timer {
+            encoder.resolve_query_set(&t.queries, 0..2, &t.resolve, 0);
+            encoder.copy_buffer_to_buffer(&t.resolve, 0, &t.staging, 0, 16);
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        self.read_back(inputs.frame, mode)
+    }
+
+    /// Runs the pipeline on one frame and leaves its colour and display image on the
+    /// device: nothing is copied back.
+    pub fn reconstruct_on_device(
+        &mut self,
+        inputs: &FrameInputs,
+    ) -> Result<DeviceImage, ReconstructError> {
+        let (target, mode, encoder) = self.encode(inputs)?;
+        self.ctx.queue.submit([encoder.finish()]);
+        self.last_gpu_ms = None;
+        Ok(DeviceImage::new(target, Arc::clone(&self.ctx), inputs.frame, mode))
+    }
+
+    /// Uploads one frame's inputs and records its passes and history copies into a new
+    /// encoder, not yet submitted; returns the target written and the frame's mode (the
+    /// reconstructed radiance is `filtered` while interacting, else `filled`).
+    fn encode(
+        &mut self,
+        inputs: &FrameInputs,
+    ) -> Result<(Arc<DisplayTarget>, Mode, wgpu::CommandEncoder), ReconstructError> {
         inputs.validate(self.width, self.height)?;
         let g = inputs.gbuffer;
         let c = PassConsts::new(self.width, self.height, &self.params, g.scene_scale);
@@ -313,7 +387,11 @@ impl GpuReconstructor {
         let uniforms = Uniforms::new(&c, reset, weights);
         self.ctx.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&uniforms));
         self.upload_inputs(inputs);
-        let (device, queue) = (&self.ctx.device, &self.ctx.queue);
+        let device = &self.ctx.device;
+        let (t, p, u) = (&self.textures, &self.passes, &self.uniforms);
+        let target = self.targets.free(device, (self.width, self.height), &|colour, display| {
+            t.remodulate(device, &p.remodulate, u, colour, display)
+        });
 
         let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("reconstruct") });
@@ -325,21 +403,20 @@ impl GpuReconstructor {
             })
         };
         let (w, h, k) = (self.width, self.height, self.parity);
-        let (p, b) = (&self.passes, &self.groups);
+        let b = &self.groups;
         p.accumulate.encode(&mut encoder, &b.accumulate[k], w, h, stamp(true));
         p.fill.encode(&mut encoder, &b.fill[k], w, h, None);
-        let (result, remodulate) = if mode == Mode::Interacting {
+        let remodulate = if mode == Mode::Interacting {
             p.temporal.encode(&mut encoder, &b.temporal, w, h, None);
             p.gaussian.encode(&mut encoder, &b.gaussian, w, h, None);
-            (&self.textures.filtered, &b.remodulate[0])
+            &target.remodulate[0]
         } else {
-            (&self.textures.filled, &b.remodulate[1])
+            &target.remodulate[1]
         };
         p.remodulate.encode(&mut encoder, remodulate, w, h, stamp(false));
         self.parity = 1 - k;
 
         if let Some(slot) = self.ring.push(inputs.frame) {
-            let t = &self.textures;
             for (src, dst) in [
                 (&t.filled, &t.past_radiance),
                 (&t.normal, &t.past_normal),
@@ -357,15 +434,7 @@ impl GpuReconstructor {
                 );
             }
         }
-        self.staging[0].copy_from(&mut encoder, result);
-        self.staging[1].copy_from(&mut encoder, &self.textures.colour);
-        self.staging[2].copy_from(&mut encoder, &self.textures.display);
-        if let Some(t) = &self.timer {
-            encoder.resolve_query_set(&t.queries, 0..2, &t.resolve, 0);
-            encoder.copy_buffer_to_buffer(&t.resolve, 0, &t.staging, 0, 16);
-        }
-        queue.submit([encoder.finish()]);
-        self.read_back(inputs.frame, mode)
+        Ok((target, mode, encoder))
     }
 
     /// Uploads this frame's samples, and the G-buffer when its state version is new.
@@ -408,29 +477,14 @@ impl GpuReconstructor {
 
     fn read_back(&mut self, frame: u64, mode: Mode) -> Result<Reconstructed, ReconstructError> {
         let device = &self.ctx.device;
-        let (w, n) = (self.width as usize, self.width as usize * self.height as usize);
-        let mut out = Reconstructed {
+        let out = Reconstructed {
             frame,
             mode,
-            radiance: vec![Vec3::ZERO; n],
-            colour: vec![Vec3::ZERO; n],
-            display: vec![[0; 4]; n],
+            radiance: self.staging[0].read_vec3(device)?,
+            colour: self.staging[1].read_vec3(device)?,
+            display: self.staging[2].read_rgba8(device)?,
         };
-        for (staging, plane) in
-            [(&self.staging[0], &mut out.radiance), (&self.staging[1], &mut out.colour)]
-        {
-            staging.read(device, |y, row| {
-                let texels: &[[f32; 4]] = bytemuck::cast_slice(row);
-                for (o, t) in plane[y * w..(y + 1) * w].iter_mut().zip(texels) {
-                    *o = Vec3::new(t[0], t[1], t[2]);
-                }
-            })?;
-        }
-        self.staging[2].read(device, |y, row| {
-            for (o, t) in out.display[y * w..(y + 1) * w].iter_mut().zip(row.chunks_exact(4)) {
-                *o = [t[0], t[1], t[2], t[3]];
-            }
-        })?;
+        self.read_backs += 1;
         self.last_gpu_ms = match &self.timer {
             Some(t) => Some(t.read_ms(device)?),
             None => None,

@@ -6,11 +6,15 @@
 //! temporal and the edge-aware Gaussian, then remodulate. Each pass keeps its CPU kernel,
 //! WGSL and GPU binding together in `pass/`; the pipelines that run them are
 //! [`CpuReconstructor`] (the multithreaded reference, `cpu.rs`) and [`GpuReconstructor`]
-//! (`gpu.rs`, on the device plumbing of `crate::gpu`); [`Reconstructor`] picks one.
+//! (`gpu.rs`, on the device plumbing of `crate::gpu`); [`Reconstructor`] picks one. The
+//! GPU pipeline writes each frame's outputs to a target of its own (`display_target.rs`)
+//! and can leave them there for a window on its device ([`DeviceImage`]).
 //! The CPU kernels' support is `planes.rs` (bordered planes), `simd.rs` (vectors and ISA
 //! dispatch) and `discontinuity.rs` (D); `history.rs` is the temporal history both
 //! pipelines share. Whether a frame accumulates is not decided here: it comes with the
 //! frame (`FrameInputs::accumulated_frames`).
+
+use std::sync::Arc;
 
 use glam::Vec3;
 use gridlight_actors::protocol::FrameNo;
@@ -18,7 +22,9 @@ use gridlight_actors::state::StateVersion;
 use rayon::prelude::*;
 
 pub mod cpu;
+pub mod device_image;
 pub mod discontinuity;
+pub mod display_target;
 pub mod gpu;
 pub mod history;
 pub mod params;
@@ -29,6 +35,7 @@ pub mod synthetic;
 pub mod tonemap;
 
 pub use cpu::CpuReconstructor;
+pub use device_image::DeviceImage;
 pub use gpu::GpuReconstructor;
 pub use params::ReconstructParams;
 
@@ -137,25 +144,51 @@ pub enum Reconstructor {
     Gpu(Box<GpuReconstructor>),
 }
 
+/// A reconstructed frame as [`Reconstructor::reconstruct_for_display`] gives it.
+#[derive(Clone, Debug)]
+pub enum ForDisplay {
+    /// Read back (or made on the CPU).
+    Host(Reconstructed),
+    /// Left on the GPU reconstructor's device.
+    Device(DeviceImage),
+}
+
 impl Reconstructor {
-    /// Makes a reconstructor for `width`×`height` frames on the requested backend; `Auto`
-    /// falls back to the CPU (with a log line saying why) when no adapter is usable.
+    /// Makes a reconstructor for `width`×`height` frames on the requested backend, on
+    /// `device` when one is given (the window's) and on a device of its own otherwise;
+    /// `Auto` takes the CPU (with a log line saying why) unless a hardware adapter is
+    /// usable ([`GpuContext::new_hardware`]).
     pub fn new(
         width: u32,
         height: u32,
         params: ReconstructParams,
         backend: Backend,
+        device: Option<Arc<GpuContext>>,
     ) -> Result<Self, ReconstructError> {
-        let gpu = |ctx: Result<GpuContext, GpuError>| -> Result<Self, ReconstructError> {
-            Ok(Self::Gpu(Box::new(GpuReconstructor::new(ctx?.into(), width, height, params)?)))
+        let gpu = |ctx: Result<Arc<GpuContext>, GpuError>| -> Result<Self, ReconstructError> {
+            Ok(Self::Gpu(Box::new(GpuReconstructor::new(ctx?, width, height, params)?)))
         };
-        match backend {
-            Backend::Cpu => Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?)),
-            Backend::Gpu => gpu(GpuContext::new()),
-            Backend::Auto => gpu(GpuContext::new_hardware()).or_else(|err| {
-                tracing::info!(cause = %err, "GPU reconstruction unavailable, using the CPU");
-                Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?))
-            }),
+        let hardware = |ctx: Arc<GpuContext>| {
+            if ctx.is_software() {
+                Err(ctx.software())
+            } else {
+                Ok(ctx)
+            }
+        };
+        match (backend, device) {
+            (Backend::Cpu, _) => Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?)),
+            (Backend::Gpu, Some(ctx)) => gpu(Ok(ctx)),
+            (Backend::Gpu, None) => gpu(GpuContext::new().map(Arc::new)),
+            (Backend::Auto, device) => {
+                let ctx = match device {
+                    Some(ctx) => hardware(ctx),
+                    None => GpuContext::new_hardware().map(Arc::new),
+                };
+                gpu(ctx).or_else(|err| {
+                    tracing::info!(cause = %err, "GPU reconstruction unavailable, using the CPU");
+                    Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?))
+                })
+            }
         }
     }
 
@@ -164,6 +197,29 @@ impl Reconstructor {
         match self {
             Self::Cpu(r) => r.reconstruct(inputs),
             Self::Gpu(r) => r.reconstruct(inputs),
+        }
+    }
+
+    /// Reconstructs one frame for a display on `device`: a GPU reconstructor on that
+    /// device leaves it there; otherwise it comes to the CPU.
+    pub fn reconstruct_for_display(
+        &mut self,
+        inputs: &FrameInputs,
+        device: &wgpu::Device,
+    ) -> Result<ForDisplay, ReconstructError> {
+        match self {
+            Self::Gpu(r) if &r.context().device == device => {
+                r.reconstruct_on_device(inputs).map(ForDisplay::Device)
+            }
+            other => other.reconstruct(inputs).map(ForDisplay::Host),
+        }
+    }
+
+    /// Frames read back from the GPU so far (none on the CPU).
+    pub fn read_backs(&self) -> u64 {
+        match self {
+            Self::Cpu(_) => 0,
+            Self::Gpu(r) => r.read_backs(),
         }
     }
 

@@ -1,11 +1,32 @@
-//! The picture pass: uploads the newest picture into a texture at render resolution and
-//! draws it into a viewport of the window with `blit.wgsl`.
+//! The picture pass: draws the newest frame into a viewport of the window with
+//! `blit.wgsl`. A picture on the CPU is uploaded into a texture at render resolution
+//! (recreated only when the render resolution changes, not when the window is resized); a
+//! frame left on the window's device by the reconstruction is sampled where it is, with
+//! no copy. It counts both, so that a test can check that the one-device path uploads
+//! nothing.
 //!
-//! A small GPU pass in the STYLE.md item 5 shape (`new`, `upload`, `encode`). The texture is
-//! recreated only when the render resolution changes, not when the window is resized.
+//! A small GPU pass in the STYLE.md item 5 shape (`new`, `show`, `encode`).
 
 use super::layout::Rect;
-use super::picture::Picture;
+use super::picture::{FrameImage, Picture};
+use crate::reconstruct::DeviceImage;
+
+/// What the pass draws from.
+enum Source {
+    /// A texture of its own, filled by [`BlitPass::show`] uploads.
+    Uploaded(wgpu::Texture),
+    /// The reconstruction's texture, held so that no later frame writes it meanwhile.
+    Device { _held: DeviceImage },
+}
+
+/// How the shown frames reached the pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct BlitCounts {
+    /// Pictures uploaded from the CPU (`write_texture`).
+    pub uploads: u64,
+    /// Frames sampled in place on the device.
+    pub device_frames: u64,
+}
 
 /// The blit shader's source, checked by naga in the tests.
 pub const SHADER: &str = include_str!("../../shaders/window/blit.wgsl");
@@ -17,8 +38,9 @@ pub struct BlitPass {
     sampler: wgpu::Sampler,
     /// Same encoding as the surface (sRGB or not), so the copy is exact.
     texture_format: wgpu::TextureFormat,
-    /// The picture texture and its bind group, once a picture arrived.
-    current: Option<(wgpu::Texture, wgpu::BindGroup)>,
+    /// What is drawn and its bind group, once a frame arrived.
+    current: Option<(Source, wgpu::BindGroup)>,
+    counts: BlitCounts,
 }
 
 impl BlitPass {
@@ -91,22 +113,82 @@ impl BlitPass {
         } else {
             wgpu::TextureFormat::Rgba8Unorm
         };
-        Self { pipeline, layout, sampler, texture_format, current: None }
+        Self {
+            pipeline,
+            layout,
+            sampler,
+            texture_format,
+            current: None,
+            counts: BlitCounts::default(),
+        }
     }
 
-    /// True once a picture was uploaded.
+    /// True once a frame arrived.
     pub fn has_picture(&self) -> bool {
         self.current.is_some()
     }
 
+    /// How the frames shown so far arrived.
+    pub fn counts(&self) -> BlitCounts {
+        self.counts
+    }
+
+    /// Takes `image` as the frame to draw: uploads a picture, or samples a device image in
+    /// place when it lives on `device` (one on another device is read back and uploaded).
+    pub fn show(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, image: &FrameImage) {
+        match image {
+            FrameImage::Picture { picture, .. } => self.upload(device, queue, picture),
+            FrameImage::Device(image) if image.is_on(device) => self.sample(device, image),
+            FrameImage::Device(image) => match image.read_back() {
+                Ok((rgba, _)) => {
+                    if let Some(p) = Picture::from_pixels(image.width, image.height, &rgba) {
+                        self.upload(device, queue, &p);
+                    }
+                }
+                Err(err) => tracing::warn!(cause = %err, "frame not shown"),
+            },
+        }
+    }
+
+    /// Binds the display texture of `image` (on this pass's device).
+    fn sample(&mut self, device: &wgpu::Device, image: &DeviceImage) {
+        let view = image.display().create_view(&wgpu::TextureViewDescriptor {
+            format: Some(self.texture_format),
+            ..Default::default()
+        });
+        let bind_group = self.bind(device, &view);
+        self.current = Some((Source::Device { _held: image.clone() }, bind_group));
+        self.counts.device_frames += 1;
+    }
+
+    fn bind(&self, device: &wgpu::Device, view: &wgpu::TextureView) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("picture"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        })
+    }
+
     /// Uploads `picture`, reallocating the texture only when its size changed.
-    pub fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, picture: &Picture) {
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, picture: &Picture) {
         let size = wgpu::Extent3d {
             width: picture.width,
             height: picture.height,
             depth_or_array_layers: 1,
         };
-        let same_size = self.current.as_ref().is_some_and(|(t, _)| t.size() == size);
+        let same_size = self
+            .current
+            .as_ref()
+            .is_some_and(|(s, _)| matches!(s, Source::Uploaded(t) if t.size() == size));
         if !same_size {
             let texture = device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("picture"),
@@ -119,23 +201,10 @@ impl BlitPass {
                 view_formats: &[],
             });
             let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("picture"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::TextureView(&view),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::Sampler(&self.sampler),
-                    },
-                ],
-            });
-            self.current = Some((texture, bind_group));
+            let bind_group = self.bind(device, &view);
+            self.current = Some((Source::Uploaded(texture), bind_group));
         }
-        if let Some((texture, _)) = &self.current {
+        if let Some((Source::Uploaded(texture), _)) = &self.current {
             queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture,
@@ -151,6 +220,7 @@ impl BlitPass {
                 },
                 size,
             );
+            self.counts.uploads += 1;
         }
     }
 

@@ -1,7 +1,10 @@
 //! The window's wgpu context: instance, surface, adapter, device and the surface
 //! configuration, with resizing and frame acquisition.
 //!
-//! Created on the event-loop thread once the window exists. On machines without a GPU,
+//! Created on the event-loop thread once the window exists. The device is opened the way
+//! the reconstruction opens its own ([`GpuContext::on_adapter`]), so that the compose
+//! thread can reconstruct on it and the window draw its textures directly
+//! (`crate::gpu::offer`). On machines without a GPU,
 //! Mesa's lavapipe (software Vulkan) is picked by default; `WGPU_BACKEND` overrides the
 //! backend (see `../shared/notes/wgpu-without-a-gpu.md`).
 
@@ -9,6 +12,8 @@ use std::sync::Arc;
 
 use thiserror::Error;
 use winit::window::Window;
+
+use crate::gpu::{GpuContext, GpuError};
 
 /// Why the window could not get a GPU surface.
 #[derive(Debug, Error)]
@@ -18,7 +23,7 @@ pub enum SurfaceError {
     #[error("no graphics adapter can present to this window: {0}")]
     Adapter(#[from] wgpu::RequestAdapterError),
     #[error("cannot open the graphics device: {0}")]
-    Device(#[from] wgpu::RequestDeviceError),
+    Device(#[from] GpuError),
     #[error("the adapter offers no surface format for this window")]
     NoFormat,
 }
@@ -26,11 +31,11 @@ pub enum SurfaceError {
 /// GPU state tied to one window.
 pub struct Gpu {
     pub surface: wgpu::Surface<'static>,
-    pub device: wgpu::Device,
-    pub queue: wgpu::Queue,
+    /// Device, queue and adapter (name and backend for the status panel and the log).
+    pub ctx: Arc<GpuContext>,
     pub config: wgpu::SurfaceConfiguration,
-    /// Adapter name and backend, for the status panel and the log.
-    pub adapter_info: wgpu::AdapterInfo,
+    /// Whether the reconstruction can run on this device (`GpuContext::check_storage`).
+    pub reconstructs: bool,
 }
 
 /// What acquiring the next surface texture gave.
@@ -55,12 +60,9 @@ impl Gpu {
             compatible_surface: Some(&surface),
             ..Default::default()
         }))?;
-        let adapter_info = adapter.get_info();
-        let (device, queue) =
-            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("gridlight window"),
-                ..Default::default()
-            }))?;
+        let ctx =
+            pollster::block_on(GpuContext::on_adapter(&adapter, "gridlight window"))?.shared();
+        let reconstructs = GpuContext::check_storage(&adapter).is_ok();
         let caps = surface.get_capabilities(&adapter);
         // egui draws best into a non-sRGB target; the picture's texture follows suit.
         let format = caps
@@ -83,14 +85,14 @@ impl Gpu {
             view_formats: vec![],
             color_space: wgpu::SurfaceColorSpace::Auto,
         };
-        surface.configure(&device, &config);
+        surface.configure(&ctx.device, &config);
         tracing::info!(
-            adapter = %adapter_info.name,
-            backend = ?adapter_info.backend,
+            adapter = %ctx.adapter_info.name,
+            backend = ?ctx.adapter_info.backend,
             format = ?format,
             "window surface ready"
         );
-        Ok(Self { surface, device, queue, config, adapter_info })
+        Ok(Self { surface, ctx, config, reconstructs })
     }
 
     /// Follows a window resize; a zero-sized window (minimised) keeps the old size.
@@ -100,7 +102,7 @@ impl Gpu {
         }
         self.config.width = width;
         self.config.height = height;
-        self.surface.configure(&self.device, &self.config);
+        self.surface.configure(&self.ctx.device, &self.config);
     }
 
     /// The next texture to draw into, reconfiguring the surface when it went stale.
@@ -109,11 +111,11 @@ impl Gpu {
             wgpu::CurrentSurfaceTexture::Success(frame) => Acquired::Frame(frame),
             wgpu::CurrentSurfaceTexture::Suboptimal(frame) => {
                 // Draw this one; the next acquisition gets a matching configuration.
-                self.surface.configure(&self.device, &self.config);
+                self.surface.configure(&self.ctx.device, &self.config);
                 Acquired::Frame(frame)
             }
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
-                self.surface.configure(&self.device, &self.config);
+                self.surface.configure(&self.ctx.device, &self.config);
                 Acquired::Skip
             }
             wgpu::CurrentSurfaceTexture::Timeout

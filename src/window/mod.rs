@@ -11,6 +11,12 @@
 //! waits in a [`latest::Latest`] slot and an [`EventLoopProxy`] wakes the window. The
 //! window never waits for the master and the master never waits for the window.
 //!
+//! # One device
+//! The window opens its device on the event-loop thread and offers it to the compose
+//! thread ([`DeviceOffer`]); GPU reconstruction runs there and hands the window each final
+//! frame as a texture of its own ([`picture::FrameImage::Device`]), which the blit pass
+//! samples with no read-back and no upload (ARCHITECTURE.md, "One device on the master").
+//!
 //! # Files
 //! - [`app`]: the winit application (input, drawing).
 //! - [`gpu`], [`blit`]: the wgpu surface and the picture pass (`blit.wgsl`).
@@ -25,7 +31,6 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use glam::Vec3;
 use gridlight_actors::state::SceneState;
 use thiserror::Error;
 use winit::event_loop::{EventLoop, EventLoopProxy};
@@ -45,11 +50,12 @@ pub mod screenshot;
 pub mod session;
 pub mod status;
 
+use crate::gpu::DeviceOffer;
 use crate::master::view::View;
 use edits::WindowEdit;
 use latest::Latest;
 use panel::PacingChoice;
-use picture::Picture;
+use picture::FrameImage;
 use status::StatusView;
 
 /// Events that other threads send to the window's event loop.
@@ -66,10 +72,7 @@ pub enum UserEvent {
 #[derive(Clone, Debug)]
 pub struct ReadyFrame {
     /// What the window shows for the selected view.
-    pub picture: Picture,
-    /// Final linear colour (albedo · radiance + emission), for EXR screenshots; only the
-    /// final view has it.
-    pub linear: Option<Arc<Vec<Vec3>>>,
+    pub image: FrameImage,
     /// The frame's statistics.
     pub status: StatusView,
 }
@@ -142,13 +145,15 @@ pub fn display_available() -> bool {
 }
 
 /// Opens the window on the current thread (the main thread in the binary) and runs until it
-/// closes. `start` receives the proxy and the frame slot and starts the session (master,
-/// compose thread); it runs once the event loop exists, before the window opens.
+/// closes. `start` receives the proxy, the frame slot and the offer of the window's device
+/// and starts the session (master, compose thread); it runs once the event loop exists,
+/// before the window opens.
 pub fn run<F>(options: WindowOptions, start: F) -> Result<(), WindowError>
 where
     F: FnOnce(
         EventLoopProxy<UserEvent>,
         Arc<Latest<ReadyFrame>>,
+        DeviceOffer,
     ) -> Result<Box<dyn Session>, String>,
 {
     let event_loop = new_event_loop()?;
@@ -159,9 +164,10 @@ where
     })
     .map_err(|e| WindowError::Session(format!("cannot install the Ctrl-C handler: {e}")))?;
     let frames = Arc::new(Latest::new());
-    let session =
-        start(event_loop.create_proxy(), Arc::clone(&frames)).map_err(WindowError::Session)?;
-    let mut app = app::App::new(options, session, frames);
+    let offer = DeviceOffer::new();
+    let session = start(event_loop.create_proxy(), Arc::clone(&frames), offer.clone())
+        .map_err(WindowError::Session)?;
+    let mut app = app::App::new(options, session, frames, offer);
     event_loop.run_app(&mut app)?;
     Ok(())
 }

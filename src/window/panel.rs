@@ -209,6 +209,12 @@ fn status_section(ui: &mut egui::Ui, s: &StatusView) {
         );
         grid_row(ui, "reconstruction", s.reconstructor.clone());
         grid_row(ui, "adapter", s.adapter.clone());
+        grid_row(ui, "drawn from device", s.device_frames.to_string());
+        grid_row(
+            ui,
+            "uploaded / read back",
+            format!("{} / {}", s.picture_uploads, s.frames_read_back),
+        );
     });
     egui::CollapsingHeader::new(format!("Workers ({})", s.workers.len()))
         .default_open(true)

@@ -1,5 +1,45 @@
 //! What the window shows: an 8-bit picture at render resolution (the chosen view of a
-//! frame, made by [`crate::master::compose`]).
+//! frame, made by [`crate::master::compose`]), or the final view in the reconstruction's
+//! texture on the window's own device ([`FrameImage::Device`]), drawn without a copy.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use crate::reconstruct::DeviceImage;
+
+/// The pixels of one frame, where they are.
+#[derive(Clone, Debug)]
+pub enum FrameImage {
+    /// On the CPU; the blit pass uploads it.
+    Picture {
+        picture: Picture,
+        /// Final linear colour (albedo · radiance + emission), for EXR screenshots; only
+        /// the final view has it.
+        linear: Option<Arc<Vec<Vec3>>>,
+    },
+    /// The final view, left on the window's device by the GPU reconstruction.
+    Device(DeviceImage),
+}
+
+/// A frame's picture and, for the final view, its linear colour, on the CPU.
+pub type HostFrame = (Picture, Option<Arc<Vec<Vec3>>>);
+
+impl FrameImage {
+    /// The picture and linear colour on the CPU, for screenshots: a device image is read
+    /// back here (once per screenshot, never per frame).
+    pub fn to_host(&self) -> Result<HostFrame, String> {
+        match self {
+            FrameImage::Picture { picture, linear } => Ok((picture.clone(), linear.clone())),
+            FrameImage::Device(image) => {
+                let (rgba, linear) = image.read_back().map_err(|e| e.to_string())?;
+                let picture = Picture::from_pixels(image.width, image.height, &rgba)
+                    .ok_or("the device image's size does not match its pixels")?;
+                Ok((picture, Some(Arc::new(linear))))
+            }
+        }
+    }
+}
 
 /// One picture, row-major RGBA8 (display-encoded), y = 0 the top row.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -6,8 +6,19 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
+use glam::Vec3;
+
 use super::panel::ShotFormat;
-use super::ReadyFrame;
+use super::picture::Picture;
+
+/// What a screenshot writes: the shown frame's number, its picture and, for the final
+/// view, its linear colour.
+#[derive(Clone, Copy, Debug)]
+pub struct Shot<'a> {
+    pub frame: u64,
+    pub picture: &'a Picture,
+    pub linear: Option<&'a [Vec3]>,
+}
 
 /// Why a screenshot could not be written.
 #[derive(Debug, Error)]
@@ -21,25 +32,21 @@ pub enum ScreenshotError {
 }
 
 /// Writes `shown` into `dir` in `format` and returns the file's path.
-pub fn save(
-    dir: &Path,
-    shown: &ReadyFrame,
-    format: ShotFormat,
-) -> Result<PathBuf, ScreenshotError> {
+pub fn save(dir: &Path, shown: &Shot, format: ShotFormat) -> Result<PathBuf, ScreenshotError> {
     std::fs::create_dir_all(dir)
         .map_err(|source| ScreenshotError::Folder { path: dir.to_path_buf(), source })?;
     let ext = match format {
         ShotFormat::Png => "png",
         ShotFormat::Exr => "exr",
     };
-    let path = free_name(dir, shown.status.frame, ext);
+    let path = free_name(dir, shown.frame, ext);
     let (w, h) = (shown.picture.width, shown.picture.height);
     let result = match format {
         ShotFormat::Png => {
             image::save_buffer(&path, &shown.picture.rgba, w, h, image::ExtendedColorType::Rgba8)
         }
         ShotFormat::Exr => {
-            let linear = shown.linear.as_ref().ok_or(ScreenshotError::NoLinear)?;
+            let linear = shown.linear.ok_or(ScreenshotError::NoLinear)?;
             let floats: Vec<f32> = linear.iter().flat_map(|c| c.to_array()).collect();
             image::save_buffer(
                 &path,
@@ -68,25 +75,23 @@ fn free_name(dir: &Path, frame: u64, ext: &str) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::window::picture::Picture;
-    use crate::window::status::StatusView;
-    use glam::Vec3;
-    use std::sync::Arc;
 
-    fn composed(linear: bool) -> ReadyFrame {
-        ReadyFrame {
-            picture: Picture { width: 2, height: 1, rgba: vec![255, 0, 0, 255, 0, 255, 0, 255] },
-            linear: linear
-                .then(|| Arc::new(vec![Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.5, 0.0)])),
-            status: StatusView { frame: 7, ..Default::default() },
-        }
+    const LINEAR: [Vec3; 2] = [Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.5, 0.0)];
+
+    fn picture() -> Picture {
+        Picture { width: 2, height: 1, rgba: vec![255, 0, 0, 255, 0, 255, 0, 255] }
+    }
+
+    fn shot(picture: &Picture, linear: bool) -> Shot<'_> {
+        Shot { frame: 7, picture, linear: linear.then_some(&LINEAR[..]) }
     }
 
     #[test]
     fn png_round_trips_and_names_do_not_collide() {
         let dir = tempfile::tempdir().expect("temp dir");
-        let a = save(dir.path(), &composed(false), ShotFormat::Png).expect("png");
-        let b = save(dir.path(), &composed(false), ShotFormat::Png).expect("png");
+        let p = picture();
+        let a = save(dir.path(), &shot(&p, false), ShotFormat::Png).expect("png");
+        let b = save(dir.path(), &shot(&p, false), ShotFormat::Png).expect("png");
         assert_ne!(a, b);
         assert!(a.ends_with("gridlight-frame7.png"));
         let img = image::open(&a).expect("readable").to_rgba8();
@@ -97,11 +102,12 @@ mod tests {
     #[test]
     fn exr_keeps_linear_values_above_one() {
         let dir = tempfile::tempdir().expect("temp dir");
-        let path = save(dir.path(), &composed(true), ShotFormat::Exr).expect("exr");
+        let p = picture();
+        let path = save(dir.path(), &shot(&p, true), ShotFormat::Exr).expect("exr");
         let img = image::open(&path).expect("readable").to_rgb32f();
         assert_eq!(img.get_pixel(0, 0).0, [2.0, 0.0, 0.0]);
         assert!(matches!(
-            save(dir.path(), &composed(false), ShotFormat::Exr),
+            save(dir.path(), &shot(&p, false), ShotFormat::Exr),
             Err(ScreenshotError::NoLinear)
         ));
     }

@@ -23,10 +23,10 @@ use winit::event_loop::EventLoopProxy;
 use super::edits::WindowEdit;
 use super::latest::Latest;
 use super::panel::PacingChoice;
-use super::picture::Picture;
+use super::picture::{FrameImage, Picture};
 use super::status::{StatusView, WorkerRow};
 use super::{ReadyFrame, Session, UserEvent};
-use crate::master::compose::{Composer, SharedScene};
+use crate::master::compose::{Composer, Image, SharedScene};
 use crate::master::view::View;
 use crate::render;
 
@@ -55,10 +55,18 @@ impl WindowSink {
         let view =
             View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
         let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.into()))?;
-        let picture = Picture::from_pixels(c.width, c.height, &c.rgba)
-            .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
-        let status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
-        Ok(ReadyFrame { picture, linear: c.linear.map(Arc::new), status })
+        let image = match c.image {
+            Image::Host { rgba, linear } => FrameImage::Picture {
+                picture: Picture::from_pixels(c.width, c.height, &rgba).ok_or_else(|| {
+                    SinkError::Other("picture size does not match the frame".into())
+                })?,
+                linear: linear.map(Arc::new),
+            },
+            Image::Device(image) => FrameImage::Device(image),
+        };
+        let mut status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
+        status.frames_read_back = self.composer.read_backs();
+        Ok(ReadyFrame { image, status })
     }
 }
 
@@ -346,7 +354,8 @@ pub fn run_master_window(
     let pacing = PacingChoice::from(config.pacing);
     let report: SharedReport = Arc::default();
     let session_report = Arc::clone(&report);
-    super::run(options, move |proxy, frames| {
+    super::run(options, move |proxy, frames, offer| {
+        let composer = composer.with_window_device(offer);
         let scene = composer.scene();
         let view: SharedView = Arc::new(AtomicU8::new(0));
         let sink = WindowSink::new(composer, Arc::clone(&view), frames, proxy);

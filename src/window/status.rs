@@ -50,6 +50,13 @@ pub struct StatusView {
     /// The reconstructor and the window's graphics adapter, for the curious.
     pub reconstructor: String,
     pub adapter: String,
+    /// Frames the compose thread read back from the GPU reconstruction so far (none when
+    /// it runs on the window's device and the final view is shown).
+    pub frames_read_back: u64,
+    /// Pictures the window uploaded so far (the CPU path and the diagnostic views).
+    pub picture_uploads: u64,
+    /// Frames the window drew from the reconstruction's textures so far.
+    pub device_frames: u64,
     /// When the edits this frame shows first were made, those of frames replaced before
     /// the window took one included (the window stamps the latency when it presents the
     /// frame).

@@ -6,7 +6,8 @@
 //! time is wall-clock time of `CpuReconstructor::reconstruct_into`, with the output
 //! buffers reused from frame to frame as a frame loop would; GPU time comes from
 //! timestamps written at the start of the first pass and the end of the last (uploads and
-//! readback excluded; they are in `gpu_wall_ms`).
+//! readback excluded; they are in `gpu_wall_ms`). `gpu_on_device_ms` is the windowed
+//! master's one-device path: uploads and passes, no readback, until the queue is done.
 //!
 //! The G-buffer is timed on the built-in Cornell box at the same size, a new scene-state
 //! version per frame: `gbuffer_ms` for the raster pass, `gbuffer_cpu_ms` for the CPU path
@@ -65,6 +66,9 @@ pub struct BenchReport {
     pub gpu_ms: Option<f64>,
     /// Median wall milliseconds per GPU frame including upload and readback.
     pub gpu_wall_ms: Option<f64>,
+    /// Median wall milliseconds per GPU frame left on the device (upload, passes, waiting
+    /// for the queue; no readback): what a window on the same device waits for.
+    pub gpu_on_device_ms: Option<f64>,
     /// Median wall milliseconds of the GPU G-buffer (raster pass and readback).
     pub gbuffer_ms: Option<f64>,
     /// Median wall milliseconds of the CPU G-buffer (one primary ray per pixel).
@@ -118,6 +122,7 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
         cpu_threads: rayon::current_num_threads(),
         gpu_ms: None,
         gpu_wall_ms: None,
+        gpu_on_device_ms: None,
         gbuffer_ms: None,
         gbuffer_cpu_ms: None,
         gpu_adapter: "not measured".into(),
@@ -154,18 +159,32 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
                     g.compute(st)?;
                     Ok(())
                 })?;
-                let mut r = GpuReconstructor::new(ctx, s.width, s.height, s.params)?;
-                let (mut gpu, mut wall) = (Vec::new(), Vec::new());
-                for k in 0..warmup + s.frames as u64 {
+                let mut r = GpuReconstructor::new(ctx.clone(), s.width, s.height, s.params)?;
+                let (mut gpu, mut wall, mut on_device) = (Vec::new(), Vec::new(), Vec::new());
+                // Read-back and on-device frames alternate, so that load changes hit both.
+                for k in 0..warmup + 2 * s.frames as u64 {
                     let t = Instant::now();
-                    r.reconstruct(&frame(k))?;
+                    if k % 2 == 0 {
+                        r.reconstruct(&frame(k))?;
+                    } else {
+                        drop(r.reconstruct_on_device(&frame(k))?);
+                        ctx.device
+                            .poll(wgpu::PollType::wait_indefinitely())
+                            .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
+                    }
                     if k >= warmup {
-                        wall.push(t.elapsed().as_secs_f64() * 1e3);
-                        gpu.extend(r.last_gpu_ms());
+                        let ms = t.elapsed().as_secs_f64() * 1e3;
+                        if k % 2 == 0 {
+                            wall.push(ms);
+                            gpu.extend(r.last_gpu_ms());
+                        } else {
+                            on_device.push(ms);
+                        }
                     }
                 }
                 report.gpu_ms = median(gpu);
                 report.gpu_wall_ms = median(wall);
+                report.gpu_on_device_ms = median(on_device);
             }
         }
     }

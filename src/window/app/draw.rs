@@ -6,15 +6,23 @@ use super::*;
 
 impl App {
     pub(super) fn screenshot(&mut self) {
-        self.message = match &self.shown {
-            Some(shown) => match crate::window::screenshot::save(
+        let saved = self.shown.as_ref().map(|shown| {
+            let (picture, linear) = shown.image.to_host()?;
+            let shot = crate::window::screenshot::Shot {
+                frame: shown.status.frame,
+                picture: &picture,
+                linear: linear.as_deref().map(Vec::as_slice),
+            };
+            crate::window::screenshot::save(
                 &self.options.shot_dir,
-                shown,
+                &shot,
                 self.settings.shot_format,
-            ) {
-                Ok(path) => format!("wrote {}", path.display()),
-                Err(err) => format!("screenshot failed: {err}"),
-            },
+            )
+            .map_err(|e| e.to_string())
+        });
+        self.message = match saved {
+            Some(Ok(path)) => format!("wrote {}", path.display()),
+            Some(Err(err)) => format!("screenshot failed: {err}"),
             None => "no frame to save yet".into(),
         };
         tracing::info!(message = %self.message, "screenshot");
@@ -45,8 +53,17 @@ impl App {
     pub(super) fn probe_panel(&self, layout: panel::PanelLayout, s: &Surface) {
         let Some(path) = std::env::var_os(PANEL_PROBE_ENV) else { return };
         let size = s.window.inner_size();
+        let picture = self.picture_rect.map(|r| [r.x, r.y, r.width, r.height]);
         let probe = serde_json::json!({
             "window": [size.width, size.height],
+            "picture": picture,
+            "display": {
+                "frame": self.status.frame,
+                "reconstructor": self.status.reconstructor,
+                "frames_read_back": self.status.frames_read_back,
+                "picture_uploads": self.status.picture_uploads,
+                "device_frames": self.status.device_frames,
+            },
             "last_section_visible": layout.last_section_visible(),
             "clipped_horizontally": layout.clipped_horizontally(),
             "layout": layout,
@@ -83,7 +100,10 @@ impl App {
                 ..frame.status.clone()
             };
             if let Some(s) = &mut self.surface {
-                s.blit.upload(&s.gpu.device, &s.gpu.queue, &frame.picture);
+                s.blit.show(&s.gpu.ctx.device, &s.gpu.ctx.queue, &frame.image);
+                let counts = s.blit.counts();
+                self.status.picture_uploads = counts.uploads;
+                self.status.device_frames = counts.device_frames;
             }
             self.shown = Some(frame);
         }
@@ -140,7 +160,7 @@ impl App {
         // egui's texture changes must be applied even when this frame is not drawn.
         for (id, deltas) in &output.textures_delta.set {
             for delta in deltas {
-                s.egui_renderer.update_texture(&s.gpu.device, &s.gpu.queue, *id, delta);
+                s.egui_renderer.update_texture(&s.gpu.ctx.device, &s.gpu.ctx.queue, *id, delta);
             }
         }
         let mut textures_delta = output.textures_delta;
@@ -155,17 +175,11 @@ impl App {
         let paint_jobs = self.egui.tessellate(output.shapes, ppp);
         let screen =
             egui_wgpu::ScreenDescriptor { size_in_pixels: [width, height], pixels_per_point: ppp };
-        let mut encoder = s
-            .gpu
-            .device
+        let (device, queue) = (&s.gpu.ctx.device, &s.gpu.ctx.queue);
+        let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("window") });
-        let extra = s.egui_renderer.update_buffers(
-            &s.gpu.device,
-            &s.gpu.queue,
-            &mut encoder,
-            &paint_jobs,
-            &screen,
-        );
+        let extra =
+            s.egui_renderer.update_buffers(device, queue, &mut encoder, &paint_jobs, &screen);
         {
             let mut pass = encoder
                 .begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -196,9 +210,9 @@ impl App {
             pass.set_viewport(0.0, 0.0, width as f32, height as f32, 0.0, 1.0);
             s.egui_renderer.render(&mut pass, &paint_jobs, &screen);
         }
-        s.gpu.queue.submit(extra.into_iter().chain([encoder.finish()]));
+        queue.submit(extra.into_iter().chain([encoder.finish()]));
         s.window.pre_present_notify();
-        s.gpu.queue.present(frame);
+        queue.present(frame);
         self.end_edit_latencies();
         free.iter().for_each(|id| s.egui_renderer.free_texture(id));
         let repaint_soon = output

@@ -31,6 +31,7 @@ use super::panel::{self, PanelAction, PanelModel, PanelSettings};
 use super::record::Recorder;
 use super::status::{FpsMeter, LatencyMeter, StatusView};
 use super::{ReadyFrame, Session, UserEvent, WindowOptions};
+use crate::gpu::DeviceOffer;
 
 mod draw;
 mod input;
@@ -54,6 +55,8 @@ pub struct App {
     options: WindowOptions,
     session: Box<dyn Session>,
     frames: Arc<Latest<ReadyFrame>>,
+    /// Where the window offers its device to the compose thread.
+    offer: DeviceOffer,
     surface: Option<Surface>,
     egui: egui::Context,
     /// The window's copy of the scene state, edits applied at once.
@@ -87,6 +90,7 @@ impl App {
         options: WindowOptions,
         session: Box<dyn Session>,
         frames: Arc<Latest<ReadyFrame>>,
+        offer: DeviceOffer,
     ) -> Self {
         let scene = session.initial_state();
         let settings = PanelSettings {
@@ -104,6 +108,7 @@ impl App {
             options,
             session,
             frames,
+            offer,
             surface: None,
             egui: egui::Context::default(),
             keys: MoveKeys::default(),
@@ -145,18 +150,25 @@ impl App {
                 .map_err(|e| format!("cannot open a window: {e}"))?,
         );
         let gpu = Gpu::new(Arc::clone(&window)).map_err(|e| e.to_string())?;
-        let blit = BlitPass::new(&gpu.device, gpu.config.format);
+        // The compose thread reconstructs on this device from the first frame on.
+        if gpu.reconstructs {
+            self.offer.offer(Arc::clone(&gpu.ctx));
+        } else {
+            self.offer.withdraw();
+        }
+        let device = &gpu.ctx.device;
+        let blit = BlitPass::new(device, gpu.config.format);
         let egui_state = egui_winit::State::new(
             self.egui.clone(),
             egui::ViewportId::ROOT,
             &window,
             Some(window.scale_factor() as f32),
             None,
-            Some(gpu.device.limits().max_texture_dimension_2d as usize),
+            Some(device.limits().max_texture_dimension_2d as usize),
         );
-        let egui_renderer =
-            egui_wgpu::Renderer::new(&gpu.device, gpu.config.format, Default::default());
-        self.status.adapter = format!("{} ({:?})", gpu.adapter_info.name, gpu.adapter_info.backend);
+        let egui_renderer = egui_wgpu::Renderer::new(device, gpu.config.format, Default::default());
+        let info = &gpu.ctx.adapter_info;
+        self.status.adapter = format!("{} ({:?})", info.name, info.backend);
         self.surface = Some(Surface { window, gpu, blit, egui_state, egui_renderer });
         Ok(())
     }
@@ -165,6 +177,7 @@ impl App {
         if !self.closing {
             tracing::info!("window closing: stopping the master and local workers");
             self.closing = true;
+            self.offer.withdraw();
             self.frames.close();
             self.session.shutdown();
         }

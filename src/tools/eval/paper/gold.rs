@@ -129,7 +129,7 @@ fn render_and_compose(prepared: &Prepared, frames: u32) -> anyhow::Result<Vec<Ve
                 ..Default::default()
             },
         };
-        last = composer.compose(&frame, View::Final)?.linear.unwrap_or_default();
+        last = composer.compose(&frame, View::Final)?.image.into_host()?.1.unwrap_or_default();
     }
     Ok(last)
 }

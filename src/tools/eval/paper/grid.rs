@@ -402,7 +402,7 @@ fn measure_flip(
     for (i, frame) in kept.iter().enumerate() {
         let composed = composer.compose(frame, View::Final).context("composing a shown frame")?;
         let Some(r) = records.iter_mut().find(|r| r.frame == frame.frame) else { continue };
-        let linear = composed.linear.unwrap_or_default();
+        let linear = composed.image.into_host()?.1.unwrap_or_default();
         let (w, h) = (frame.state.resolution.width, frame.state.resolution.height);
         r.flip = Some(super::super::compare(gold, &linear, w, h, 0.0).flip);
         if i % every == 0 || i + 1 == kept.len() {
