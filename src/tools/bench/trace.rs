@@ -34,6 +34,26 @@ impl Default for TraceSettings {
     }
 }
 
+impl TraceSettings {
+    /// `state` at these settings' resolution, samples and depth (the camera keeps its
+    /// framing at the new resolution).
+    pub fn applied_to(&self, state: &SceneState) -> SceneState {
+        let mut state = state.clone();
+        state.resolution.width = self.width;
+        state.resolution.height = self.height;
+        state.render.spp = self.spp;
+        state.render.max_depth = self.max_depth;
+        state
+    }
+}
+
+/// The run with the median time of `runs` (time, what the run counted); `runs` is
+/// reordered. Panics when `runs` is empty.
+pub fn median_run<T: Copy>(runs: &mut [(f64, T)]) -> (f64, T) {
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    runs[runs.len() / 2]
+}
+
 /// One line of `bench trace --json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct TraceReport {
@@ -66,12 +86,7 @@ pub fn bench_scene(
     state: &SceneState,
     settings: TraceSettings,
 ) -> Result<TraceReport, RenderError> {
-    let mut state = state.clone();
-    // Keep the camera's framing when the benchmark changes the resolution.
-    state.resolution.width = settings.width;
-    state.resolution.height = settings.height;
-    state.render.spp = settings.spp;
-    state.render.max_depth = settings.max_depth;
+    let state = settings.applied_to(state);
     let scene = RenderScene::new(assets, &state)?;
     let pixels: Vec<u32> = (0..state.resolution.pixels() as u32).collect();
     let mut out = Vec::with_capacity(pixels.len());
@@ -83,11 +98,9 @@ pub fn bench_scene(
         runs.push((start.elapsed().as_secs_f64(), stats));
         cpu.push((thread_cpu_seconds() - start_cpu, stats));
     }
-    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (seconds, stats) = runs[runs.len() / 2];
+    let (seconds, stats) = median_run(&mut runs);
     // Rays of the run with the median CPU time (each run traces another frame).
-    cpu.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (cpu_seconds, cpu_stats) = cpu[cpu.len() / 2];
+    let (cpu_seconds, cpu_stats) = median_run(&mut cpu);
     Ok(TraceReport {
         scene: name.to_string(),
         samples_per_second_per_core: stats.samples as f64 / seconds,
@@ -111,6 +124,23 @@ pub fn bench_scene(
 mod tests {
     use super::*;
     use crate::render::testscenes::cornell_box;
+
+    #[test]
+    fn the_median_run_is_the_middle_time_with_its_own_counts() {
+        let mut runs = [(3.0, 'a'), (1.0, 'b'), (2.0, 'c'), (5.0, 'd'), (4.0, 'e')];
+        assert_eq!(median_run(&mut runs), (3.0, 'a'));
+        assert_eq!(median_run(&mut [(7.0, 1)]), (7.0, 1));
+    }
+
+    #[test]
+    fn settings_replace_resolution_samples_and_depth_only() {
+        let (_, state) = cornell_box(640, 480);
+        let s = TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1 };
+        let applied = s.applied_to(&state);
+        assert_eq!((applied.resolution.width, applied.resolution.height), (8, 6));
+        assert_eq!((applied.render.spp, applied.render.max_depth), (2, 3));
+        assert_eq!(applied.camera, state.camera);
+    }
 
     #[test]
     fn report_counts_every_sample_and_at_least_one_ray_each() {

@@ -12,7 +12,7 @@ use std::time::Instant;
 use gridlight_actors::state::SceneState;
 use serde::Serialize;
 
-use super::trace::TraceSettings;
+use super::trace::{median_run, TraceSettings};
 use crate::assets::Assets;
 use crate::render::gpu::{GpuTracer, PixelBatch};
 use crate::render::{RenderScene, Strategy};
@@ -47,11 +47,7 @@ pub fn bench_scene_gpu(
     state: &SceneState,
     settings: TraceSettings,
 ) -> anyhow::Result<GpuTraceReport> {
-    let mut state = state.clone();
-    state.resolution.width = settings.width;
-    state.resolution.height = settings.height;
-    state.render.spp = settings.spp;
-    state.render.max_depth = settings.max_depth;
+    let state = settings.applied_to(state);
     let scene = RenderScene::new(assets, &state)?;
     let uploaded = tracer.upload(&scene);
     let pixels: Vec<u32> = (0..state.resolution.pixels() as u32).collect();
@@ -65,8 +61,7 @@ pub fn bench_scene_gpu(
         let stats = tracer.render(&uploaded, &batch, Strategy::NeeMis, &mut out)?;
         runs.push((start.elapsed().as_secs_f64(), stats));
     }
-    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (seconds, stats) = runs[runs.len() / 2];
+    let (seconds, stats) = median_run(&mut runs);
     Ok(GpuTraceReport {
         scene: name.to_string(),
         adapter: tracer.adapter().to_string(),
