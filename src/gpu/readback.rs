@@ -88,9 +88,7 @@ impl Staging {
         self.buffer.unmap();
         Ok(())
     }
-}
 
-impl Staging {
     /// [`Staging::read`] of an `rgba32float` copy: each texel's RGB.
     pub fn read_vec3(&self, device: &wgpu::Device) -> Result<Vec<glam::Vec3>, GpuError> {
         let w = self.width as usize;

@@ -65,9 +65,7 @@ impl Textures {
             past_position: make("past position", F32X4, MAX_HISTORY, past),
         }
     }
-}
 
-impl Textures {
     /// Remodulate's bind groups into a target's `colour` and `display` views: `[0]` from
     /// the filtered radiance, `[1]` from the filled one.
     fn remodulate(

@@ -134,19 +134,15 @@ impl BlitPass {
     }
 
     /// Takes `image` as the frame to draw: uploads a picture, or samples a device image in
-    /// place when it lives on `device` (one on another device is read back and uploaded).
+    /// place. The composer leaves a frame on the device only when it reconstructs on the
+    /// window's own device, so a device image from elsewhere is a bug, not a case to copy.
     pub fn show(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, image: &FrameImage) {
         match image {
             FrameImage::Picture { picture, .. } => self.upload(device, queue, picture),
             FrameImage::Device(image) if image.is_on(device) => self.sample(device, image),
-            FrameImage::Device(image) => match image.read_back() {
-                Ok((rgba, _)) => {
-                    if let Some(p) = Picture::from_pixels(image.width, image.height, &rgba) {
-                        self.upload(device, queue, &p);
-                    }
-                }
-                Err(err) => tracing::warn!(cause = %err, "frame not shown"),
-            },
+            FrameImage::Device(_) => {
+                tracing::error!("a frame left on another device than the window's: not shown");
+            }
         }
     }
 
