@@ -12,11 +12,14 @@ use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 
 use super::triangle::{LeafTri, TriEdges};
+use super::wide::WideBvh;
 use crate::assets::Mesh;
 
 /// Bottom-level BVH of one mesh, in object space.
 pub struct Blas {
     pub(super) bvh: CwBvh,
+    /// The CPU's traversal layout of `bvh` (the GPU's export reads `bvh`).
+    pub(super) wide: WideBvh,
     /// Triangles in BVH leaf order.
     pub(super) tris: Vec<TriEdges>,
     /// Shading data of each leaf-order triangle.
@@ -107,8 +110,9 @@ impl Blas {
                 let t = &tris[i as usize];
                 TriEdges::new(t.v0, t.v1, t.v2)
             })
-            .collect();
-        Ok(Self { bvh, tris, leaves, mesh, bounds })
+            .collect::<Vec<_>>();
+        let wide = WideBvh::build(&bvh, &tris);
+        Ok(Self { bvh, wide, tris, leaves, mesh, bounds })
     }
 
     /// Shading data of leaf-order triangle `prim`.

@@ -26,6 +26,7 @@ pub mod export;
 mod tlas;
 mod traverse;
 mod triangle;
+mod wide;
 
 pub use blas::{validate_mesh, Blas, MeshError};
 pub use tlas::{Hit, Instance, Tlas, FLAT_MAX_TRIANGLES};

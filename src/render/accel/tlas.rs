@@ -15,6 +15,7 @@ use obvhs::BvhBuildParams;
 use super::blas::{build_tri_bvh, Blas};
 use super::traverse::{intersect_node, restart};
 use super::triangle::TriEdges;
+use super::wide::{WideBvh, WideRay};
 
 /// One placed instance of a BLAS.
 #[derive(Clone)]
@@ -76,6 +77,8 @@ pub const FLAT_MAX_TRIANGLES: usize = 256;
 #[derive(Default)]
 pub(super) struct FlatGeometry {
     pub(super) bvh: CwBvh,
+    /// The CPU's traversal layout of `bvh`.
+    pub(super) wide: WideBvh,
     /// Triangles in BVH leaf order, in world space.
     pub(super) tris: Vec<TriEdges>,
     /// Per leaf-order triangle: (instance index, leaf-order triangle in its BLAS).
@@ -108,9 +111,10 @@ impl FlatGeometry {
                 let t = &tris[k as usize];
                 TriEdges::new(t.v0, t.v1, t.v2)
             })
-            .collect();
+            .collect::<Vec<_>>();
         let owner = order.iter().map(|&k| owner[k as usize]).collect();
-        Self { bvh, tris, owner }
+        let wide = WideBvh::build(&bvh, &tris);
+        Self { bvh, wide, tris, owner }
     }
 }
 
@@ -147,48 +151,27 @@ impl Tlas {
     pub fn intersect(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
         let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        let mut state = Traversal::default();
-        if !self.flat.tris.is_empty() {
-            let flat = &self.flat;
-            let mut ray = Ray::new(origin, dir, 0.0, tmax);
-            restart(&mut state, &flat.bvh, dir);
-            let mut node;
-            obvhs::traverse!(flat.bvh, node, state, intersect_node(node, &ray, state.oct_inv4), {
-                let prim = state.primitive_id;
-                if let Some((t, u, v)) =
-                    flat.tris[prim as usize].intersect(origin, dir, 0.0, ray.tmax)
-                {
-                    ray.tmax = t;
-                    let (instance, prim) = flat.owner[prim as usize];
-                    best = Hit { t, instance, prim, u, v };
-                }
-            });
+        if let Some(h) = self.flat.wide.intersect(&WideRay::new(origin, dir), tmax) {
+            let (instance, prim) = self.flat.owner[h.prim as usize];
+            best = Hit { t: h.t, instance, prim, u: h.u, v: h.v };
         }
         if self.large.is_empty() {
             return (best.instance != u32::MAX).then_some(best);
         }
-        let mut inner = Traversal::default();
-        let mut instance_hit = |index: u32, best: &mut Hit| {
+        let instance_hit = |index: u32, best: &mut Hit| {
             let inst = &self.instances[index as usize];
             let o = inst.world_to_object.transform_point3a(origin);
             let d = inst.world_to_object.transform_vector3a(dir);
-            let blas = &*inst.blas;
-            let mut ray = Ray::new(o, d, 0.0, best.t);
-            restart(&mut inner, &blas.bvh, d);
-            let mut node;
-            obvhs::traverse!(blas.bvh, node, inner, intersect_node(node, &ray, inner.oct_inv4), {
-                let prim = inner.primitive_id;
-                if let Some((t, u, v)) = blas.tris[prim as usize].intersect(o, d, 0.0, ray.tmax) {
-                    ray.tmax = t;
-                    *best = Hit { t, instance: index, prim, u, v };
-                }
-            });
+            if let Some(h) = inst.blas.wide.intersect(&WideRay::new(o, d), best.t) {
+                *best = Hit { t: h.t, instance: index, prim: h.prim, u: h.u, v: h.v };
+            }
         };
         if let [only] = self.large[..] {
             // One large instance: its BLAS root bounds it already.
             instance_hit(only, &mut best);
         } else {
             let mut world = Ray::new(origin, dir, 0.0, best.t);
+            let mut state = Traversal::default();
             restart(&mut state, &self.bvh, dir);
             let mut node;
             obvhs::traverse!(
@@ -209,44 +192,23 @@ impl Tlas {
     #[inline(always)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        let mut state = Traversal::default();
-        if !self.flat.tris.is_empty() {
-            let flat = &self.flat;
-            let ray = Ray::new(origin, dir, 0.0, tmax);
-            restart(&mut state, &flat.bvh, dir);
-            let mut node;
-            obvhs::traverse!(flat.bvh, node, state, intersect_node(node, &ray, state.oct_inv4), {
-                if flat.tris[state.primitive_id as usize]
-                    .intersect(origin, dir, 0.0, tmax)
-                    .is_some()
-                {
-                    return true;
-                }
-            });
+        if self.flat.wide.occluded(&WideRay::new(origin, dir), tmax) {
+            return true;
         }
         if self.large.is_empty() {
             return false;
         }
-        let mut inner = Traversal::default();
-        let mut instance_blocks = |index: u32| {
+        let instance_blocks = |index: u32| {
             let inst = &self.instances[index as usize];
             let o = inst.world_to_object.transform_point3a(origin);
             let d = inst.world_to_object.transform_vector3a(dir);
-            let blas = &*inst.blas;
-            let ray = Ray::new(o, d, 0.0, tmax);
-            restart(&mut inner, &blas.bvh, d);
-            let mut node;
-            obvhs::traverse!(blas.bvh, node, inner, intersect_node(node, &ray, inner.oct_inv4), {
-                if blas.tris[inner.primitive_id as usize].intersect(o, d, 0.0, tmax).is_some() {
-                    return true;
-                }
-            });
-            false
+            inst.blas.wide.occluded(&WideRay::new(o, d), tmax)
         };
         if let [only] = self.large[..] {
             return instance_blocks(only);
         }
         let world = Ray::new(origin, dir, 0.0, tmax);
+        let mut state = Traversal::default();
         restart(&mut state, &self.bvh, dir);
         let mut node;
         obvhs::traverse!(self.bvh, node, state, intersect_node(node, &world, state.oct_inv4), {

@@ -1,0 +1,467 @@
+//! The CPU's traversal layout: an eight-wide BVH with full-precision child boxes stored
+//! component by component, and leaves of up to four triangles tested together.
+//!
+//! obvhs's CWBVH is built for GPUs: each child box is eight bits per plane, so a node is
+//! 80 bytes but every test first widens 48 bytes to floats and scales them, which was a
+//! third of a bunny frame and two fifths of a Sponza frame. This layout keeps the CWBVH's
+//! topology (its SAH build is good) and decodes the boxes once, at build time, as Embree's
+//! single-ray kernels store them: `[lo_x, hi_x, lo_y, hi_y, lo_z, hi_z]` × eight children.
+//! A node test is then twelve lane-wise subtractions and multiplications, eight-wide in
+//! the x86-64-v3 build (one AVX register per plane) and two SSE halves in the baseline,
+//! and children are visited nearest first with a distance on the stack, so entries behind
+//! the closest hit found so far are dropped without a test. A leaf's triangles (a CWBVH
+//! leaf has at most three) sit in one packet of four lanes, tested at once.
+//!
+//! Why not across rays: after the first bounce the rays of neighbouring paths diverge,
+//! and a packet of incoherent rays visits the union of their nodes; Embree's own choice
+//! for incoherent rays is one ray against a wide node, which is this.
+//!
+//! Every build gives the same hits bit for bit: the lanes are plain IEEE operations in a
+//! fixed order (Rust neither contracts nor reorders float arithmetic), whatever width the
+//! compiler picks, and ties go to the lower lane and the earlier stack entry.
+
+use std::mem::MaybeUninit;
+
+use glam::Vec3A;
+use obvhs::cwbvh::CwBvh;
+
+use super::triangle::TriEdges;
+
+/// A child reference with this bit set is a leaf (its packet's index below it).
+const LEAF: u32 = 0x8000_0000;
+/// Stack entries held inline; deeper traversals spill to the heap.
+const STACK: usize = 64;
+
+/// One node: eight child boxes, plane by plane, and what each child is.
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct Node {
+    /// `[lo_x, hi_x, lo_y, hi_y, lo_z, hi_z]`, each for children 0..8.
+    planes: [[f32; 8]; 6],
+    /// Node index, or `LEAF | packet index`.
+    child: [u32; 8],
+    /// Bit i set when child i exists.
+    valid: u32,
+}
+
+/// Up to four triangles of one leaf, lane by lane; unused lanes have zero edges and
+/// never hit.
+#[derive(Clone, Copy, Default)]
+#[repr(C, align(16))]
+struct Packet {
+    v0: [[f32; 4]; 3],
+    e1: [[f32; 4]; 3],
+    e2: [[f32; 4]; 3],
+    /// Leaf-order triangle index of each lane.
+    prim: [u32; 4],
+}
+
+/// The wide BVH of one triangle set (a mesh's BLAS or the flattened small instances).
+#[derive(Default)]
+pub(super) struct WideBvh {
+    nodes: Vec<Node>,
+    packets: Vec<Packet>,
+}
+
+/// A ray prepared for node tests: which plane is near on each axis, and the inverse
+/// direction (obvhs's safe inverse, so that axis-parallel rays stay finite).
+pub(super) struct WideRay {
+    o: [f32; 3],
+    d: [f32; 3],
+    inv: [f32; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl WideRay {
+    #[inline(always)]
+    pub(super) fn new(o: Vec3A, d: Vec3A) -> Self {
+        let inv = [d.x, d.y, d.z].map(obvhs::ray::safe_inverse);
+        let near = [0, 1, 2].map(|a| 2 * a + usize::from(inv[a] < 0.0));
+        let far = near.map(|n| n ^ 1);
+        Self { o: o.into(), d: d.into(), inv, near, far }
+    }
+}
+
+/// Closest triangle hit: distance, leaf-order triangle and barycentrics (u at vertex 1,
+/// v at vertex 2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct TriHit {
+    pub t: f32,
+    pub prim: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// `a > b ? a : b` (and `<`): SSE's `maxps` and `minps`, NaN handling included.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn max(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn min(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+impl Node {
+    /// Which children the ray enters before `tmax`, and the entry distances: two SSE
+    /// halves (explicit, because the auto-vectoriser split the lanes unevenly).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn hits(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
+        use std::arch::x86_64::*;
+        let p = &self.planes;
+        let (n, f) = (ray.near, ray.far);
+        let mut tnear = [0.0f32; 8];
+        let mut mask = 0u32;
+        // SAFETY: SSE is part of x86_64; every load reads four floats inside a row of
+        // `planes` (rows are 32-byte aligned by `Node`'s alignment), the store four of
+        // `tnear`.
+        unsafe {
+            let o = ray.o.map(|x| _mm_set1_ps(x));
+            let inv = ray.inv.map(|x| _mm_set1_ps(x));
+            let (zero, tmax) = (_mm_setzero_ps(), _mm_set1_ps(tmax));
+            for half in 0..2 {
+                let t = |row: usize, axis: usize| {
+                    let b = _mm_load_ps(p[row].as_ptr().add(4 * half));
+                    _mm_mul_ps(_mm_sub_ps(b, o[axis]), inv[axis])
+                };
+                let t0 =
+                    _mm_max_ps(_mm_max_ps(t(n[0], 0), t(n[1], 1)), _mm_max_ps(t(n[2], 2), zero));
+                let t1 =
+                    _mm_min_ps(_mm_min_ps(t(f[0], 0), t(f[1], 1)), _mm_min_ps(t(f[2], 2), tmax));
+                _mm_storeu_ps(tnear.as_mut_ptr().add(4 * half), t0);
+                mask |= (_mm_movemask_ps(_mm_cmple_ps(t0, t1)) as u32) << (4 * half);
+            }
+        }
+        (mask & self.valid, tnear)
+    }
+
+    /// The same test lane by lane, where there is no SSE.
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline(always)]
+    fn hits(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
+        let p = &self.planes;
+        let (n, f) = (ray.near, ray.far);
+        let t = |row: usize, axis: usize, i: usize| (p[row][i] - ray.o[axis]) * ray.inv[axis];
+        let mut tnear = [0.0f32; 8];
+        let mut mask = 0u32;
+        for i in 0..8 {
+            let t0 = max(max(t(n[0], 0, i), t(n[1], 1, i)), max(t(n[2], 2, i), 0.0));
+            let t1 = min(min(t(f[0], 0, i), t(f[1], 1, i)), min(t(f[2], 2, i), tmax));
+            tnear[i] = t0;
+            mask |= u32::from(t0 <= t1) << i;
+        }
+        (mask & self.valid, tnear)
+    }
+}
+
+impl Packet {
+    fn new(tris: &[TriEdges], first: u32) -> Self {
+        let mut p = Packet { prim: [u32::MAX; 4], ..Default::default() };
+        for (lane, tri) in tris.iter().enumerate() {
+            for a in 0..3 {
+                p.v0[a][lane] = tri.v0[a];
+                p.e1[a][lane] = tri.e1[a];
+                p.e2[a][lane] = tri.e2[a];
+            }
+            p.prim[lane] = first + lane as u32;
+        }
+        p
+    }
+
+    /// Möller–Trumbore on four lanes (two-sided, as [`TriEdges::intersect`]): which
+    /// lanes hit within (0, tmax), and their t, u, v.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn hits(&self, ray: &WideRay, tmax: f32) -> (u32, [[f32; 4]; 3]) {
+        use std::arch::x86_64::*;
+        let mut tuv = [[0.0f32; 4]; 3];
+        // SAFETY: SSE is part of x86_64; the loads read the packet's 16-byte aligned
+        // rows, the stores write the rows of `tuv`.
+        let mask = unsafe {
+            let ld = |row: &[f32; 4]| _mm_load_ps(row.as_ptr());
+            let (v0, e1, e2) = (
+                self.v0.each_ref().map(ld),
+                self.e1.each_ref().map(ld),
+                self.e2.each_ref().map(ld),
+            );
+            let d = ray.d.map(|x| _mm_set1_ps(x));
+            let o = ray.o.map(|x| _mm_set1_ps(x));
+            let (mul, sub, add) =
+                (|a, b| _mm_mul_ps(a, b), |a, b| _mm_sub_ps(a, b), |a, b| _mm_add_ps(a, b));
+            let cross = |a: [__m128; 3], b: [__m128; 3]| {
+                [
+                    sub(mul(a[1], b[2]), mul(a[2], b[1])),
+                    sub(mul(a[2], b[0]), mul(a[0], b[2])),
+                    sub(mul(a[0], b[1]), mul(a[1], b[0])),
+                ]
+            };
+            let dot = |a: [__m128; 3], b: [__m128; 3]| {
+                add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]))
+            };
+            let pv = cross(d, e2);
+            let det = dot(e1, pv);
+            let inv = _mm_div_ps(_mm_set1_ps(1.0), det);
+            let s = [sub(o[0], v0[0]), sub(o[1], v0[1]), sub(o[2], v0[2])];
+            let u = mul(dot(s, pv), inv);
+            let q = cross(s, e1);
+            let v = mul(dot(d, q), inv);
+            let t = mul(dot(e2, q), inv);
+            let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
+            let abs_det = _mm_andnot_ps(_mm_set1_ps(-0.0), det);
+            let ok = _mm_and_ps(
+                _mm_and_ps(_mm_cmpge_ps(abs_det, _mm_set1_ps(1e-12)), _mm_cmpge_ps(u, zero)),
+                _mm_and_ps(_mm_cmple_ps(u, one), _mm_cmpge_ps(v, zero)),
+            );
+            let ok = _mm_and_ps(ok, _mm_cmple_ps(add(u, v), one));
+            let ok = _mm_and_ps(
+                ok,
+                _mm_and_ps(_mm_cmpgt_ps(t, zero), _mm_cmplt_ps(t, _mm_set1_ps(tmax))),
+            );
+            _mm_storeu_ps(tuv[0].as_mut_ptr(), t);
+            _mm_storeu_ps(tuv[1].as_mut_ptr(), u);
+            _mm_storeu_ps(tuv[2].as_mut_ptr(), v);
+            _mm_movemask_ps(ok) as u32
+        };
+        (mask, tuv)
+    }
+
+    /// The same test lane by lane, where there is no SSE.
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline(always)]
+    fn hits(&self, ray: &WideRay, tmax: f32) -> (u32, [[f32; 4]; 3]) {
+        let (o, d) = (&ray.o, &ray.d);
+        let (v0, e1, e2) = (&self.v0, &self.e1, &self.e2);
+        let mut tuv = [[0.0f32; 4]; 3];
+        let mut mask = 0;
+        for i in 0..4 {
+            let px = d[1] * e2[2][i] - d[2] * e2[1][i];
+            let py = d[2] * e2[0][i] - d[0] * e2[2][i];
+            let pz = d[0] * e2[1][i] - d[1] * e2[0][i];
+            let det = e1[0][i] * px + e1[1][i] * py + e1[2][i] * pz;
+            let inv = 1.0 / det;
+            let sx = o[0] - v0[0][i];
+            let sy = o[1] - v0[1][i];
+            let sz = o[2] - v0[2][i];
+            let u = (sx * px + sy * py + sz * pz) * inv;
+            let qx = sy * e1[2][i] - sz * e1[1][i];
+            let qy = sz * e1[0][i] - sx * e1[2][i];
+            let qz = sx * e1[1][i] - sy * e1[0][i];
+            let v = (d[0] * qx + d[1] * qy + d[2] * qz) * inv;
+            let t = (e2[0][i] * qx + e2[1][i] * qy + e2[2][i] * qz) * inv;
+            let hit = det.abs() >= 1e-12
+                && u >= 0.0
+                && u <= 1.0
+                && v >= 0.0
+                && u + v <= 1.0
+                && t > 0.0
+                && t < tmax;
+            mask |= u32::from(hit) << i;
+            tuv[0][i] = t;
+            tuv[1][i] = u;
+            tuv[2][i] = v;
+        }
+        (mask, tuv)
+    }
+}
+
+/// The traversal stack: `(child reference, entry distance)`, inline up to [`STACK`]
+/// entries (eight-wide trees are shallow), on the heap beyond.
+struct Stack {
+    inline: [MaybeUninit<(u32, f32)>; STACK],
+    len: usize,
+    spill: Vec<(u32, f32)>,
+}
+
+impl Stack {
+    #[inline(always)]
+    fn new() -> Self {
+        // Not zeroed: a memset per ray cost 4 % of a bunny frame.
+        Self { inline: [MaybeUninit::uninit(); STACK], len: 0, spill: Vec::new() }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, entry: (u32, f32)) {
+        if self.len < STACK {
+            self.inline[self.len] = MaybeUninit::new(entry);
+            self.len += 1;
+        } else {
+            self.spill.push(entry);
+        }
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32)> {
+        if let Some(e) = self.spill.pop() {
+            return Some(e);
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: entries below `len` were written by `push`.
+        Some(unsafe { self.inline[self.len].assume_init() })
+    }
+}
+
+impl WideBvh {
+    /// Decodes `bvh` (built over `tris`, which are in its leaf order).
+    pub(super) fn build(bvh: &CwBvh, tris: &[TriEdges]) -> Self {
+        let mut out = WideBvh { nodes: Vec::with_capacity(bvh.nodes.len()), packets: Vec::new() };
+        for cw in &bvh.nodes {
+            let mut node = Node { planes: [[0.0; 8]; 6], child: [0; 8], valid: 0 };
+            let ext = cw.compute_extent();
+            let quantised = [
+                &cw.child_min_x,
+                &cw.child_max_x,
+                &cw.child_min_y,
+                &cw.child_max_y,
+                &cw.child_min_z,
+                &cw.child_max_z,
+            ];
+            for i in 0..8 {
+                let meta = cw.child_meta[i];
+                if meta == 0 {
+                    continue;
+                }
+                node.valid |= 1 << i;
+                for (plane, q) in quantised.iter().enumerate() {
+                    let axis = plane / 2;
+                    // q · 2^k is exact; one ulp outwards covers the one rounding of the
+                    // sum, so the box still holds everything the CWBVH's did.
+                    let x = cw.p[axis] + q[i] as f32 * ext[axis];
+                    node.planes[plane][i] =
+                        if plane % 2 == 0 { x.next_down() } else { x.next_up() };
+                }
+                let low = u32::from(meta & 0x1f);
+                node.child[i] = if low >= 24 {
+                    let slot = low - 24;
+                    debug_assert!(cw.imask & (1 << slot) != 0);
+                    cw.child_base_idx + (u32::from(cw.imask) & ((1u32 << slot) - 1)).count_ones()
+                } else {
+                    let first = cw.primitive_base_idx + low;
+                    let count = (meta >> 5).count_ones();
+                    let leaf = &tris[first as usize..(first + count) as usize];
+                    out.packets.push(Packet::new(leaf, first));
+                    LEAF | (out.packets.len() as u32 - 1)
+                };
+            }
+            out.nodes.push(node);
+        }
+        out
+    }
+
+    /// The closest triangle the ray hits in (0, tmax).
+    #[inline(always)]
+    pub(super) fn intersect(&self, ray: &WideRay, tmax: f32) -> Option<TriHit> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let mut best = TriHit { t: tmax, prim: u32::MAX, u: 0.0, v: 0.0 };
+        let mut stack = Stack::new();
+        let mut current = 0u32;
+        loop {
+            if current & LEAF == 0 {
+                let node = &self.nodes[current as usize];
+                let (mask, tnear) = node.hits(ray, best.t);
+                if mask != 0 {
+                    let first = mask.trailing_zeros() as usize;
+                    if mask & (mask - 1) == 0 {
+                        current = node.child[first];
+                        continue;
+                    }
+                    // Nearest first: sort the entered children by distance, farthest
+                    // at the bottom (stable, so ties keep child order).
+                    let mut order = [(0u32, 0.0f32); 8];
+                    let mut n = 0;
+                    let mut m = mask;
+                    while m != 0 {
+                        let i = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        let entry = (node.child[i], tnear[i]);
+                        let mut j = n;
+                        while j > 0 && order[j - 1].1 < entry.1 {
+                            order[j] = order[j - 1];
+                            j -= 1;
+                        }
+                        order[j] = entry;
+                        n += 1;
+                    }
+                    for &entry in &order[..n - 1] {
+                        stack.push(entry);
+                    }
+                    current = order[n - 1].0;
+                    continue;
+                }
+            } else {
+                let packet = &self.packets[(current & !LEAF) as usize];
+                let (mut mask, tuv) = packet.hits(ray, best.t);
+                while mask != 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if tuv[0][i] < best.t {
+                        best = TriHit {
+                            t: tuv[0][i],
+                            prim: packet.prim[i],
+                            u: tuv[1][i],
+                            v: tuv[2][i],
+                        };
+                    }
+                }
+            }
+            // Next: the nearest stacked entry not behind the closest hit.
+            loop {
+                let Some((r, t)) = stack.pop() else {
+                    return (best.prim != u32::MAX).then_some(best);
+                };
+                if t < best.t {
+                    current = r;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Whether any triangle blocks the ray in (0, tmax).
+    #[inline(always)]
+    pub(super) fn occluded(&self, ray: &WideRay, tmax: f32) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let mut stack = Stack::new();
+        let mut current = 0u32;
+        loop {
+            if current & LEAF == 0 {
+                let node = &self.nodes[current as usize];
+                let (mut mask, _) = node.hits(ray, tmax);
+                if mask != 0 {
+                    current = node.child[mask.trailing_zeros() as usize];
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        stack.push((node.child[mask.trailing_zeros() as usize], 0.0));
+                        mask &= mask - 1;
+                    }
+                    continue;
+                }
+            } else if self.packets[(current & !LEAF) as usize].hits(ray, tmax).0 != 0 {
+                return true;
+            }
+            match stack.pop() {
+                Some((r, _)) => current = r,
+                None => return false,
+            }
+        }
+    }
+}
