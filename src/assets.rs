@@ -55,7 +55,7 @@ impl Texture {
     /// `rem_euclid` they were 16 % of a Sponza frame (a libm `fmodf` call each and 64-bit
     /// divisions), so both are done here without division, with the same results. Inlined
     /// into each dispatched build of the kernel (floor is an instruction on x86-64-v3).
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, uv: Vec2) -> Vec3 {
         let (w, h) = (self.width as f32, self.height as f32);
         let x = unit_wrap(uv.x) * w - 0.5;

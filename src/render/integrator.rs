@@ -8,6 +8,7 @@
 
 use glam::{Vec2, Vec3};
 
+use super::accel::{Lanes, Sse};
 use super::bsdf::Bsdf;
 use super::lights::AreaLight;
 use super::microfacet::Frame;
@@ -59,8 +60,8 @@ struct Surface<'a> {
 }
 
 #[inline(always)]
-fn closest<'a>(scene: &'a RenderScene, o: Vec3, d: Vec3) -> Option<Hit<'a>> {
-    let hit = scene.tlas.intersect(o, d, f32::INFINITY);
+fn closest<'a, L: Lanes>(lanes: L, scene: &'a RenderScene, o: Vec3, d: Vec3) -> Option<Hit<'a>> {
+    let hit = scene.tlas.intersect_with(lanes, o, d, f32::INFINITY);
     let mut tmax = hit.map_or(f32::INFINITY, |h| h.t);
     let mut light = None;
     for q in scene.lights.quads() {
@@ -140,7 +141,8 @@ fn albedo_of(material: &MaterialData, uv: Vec2) -> Vec3 {
 
 /// One camera path: its reflected radiance and G-buffer values.
 #[inline(always)]
-fn trace_path(
+fn trace_path<L: Lanes>(
+    lanes: L,
     scene: &RenderScene,
     stream: &mut SampleStream,
     pixel_pos: Vec2,
@@ -171,7 +173,7 @@ fn trace_path(
                 *indirect += throughput * radiance * w;
             }
         };
-        let surface = match closest(scene, o, d) {
+        let surface = match closest(lanes, scene, o, d) {
             None => {
                 for (radiance, pdf) in lights.escaped(d) {
                     if radiance != Vec3::ZERO {
@@ -237,7 +239,8 @@ fn trace_path(
         let u_light = stream.next4();
         if nee && !bsdf.is_delta() {
             let u = [u_light[0], u_light[1], u_light[2]];
-            if let Some(c) = next_event(scene, &bsdf, &frame, (surface.p, ng), wo, u, rays) {
+            if let Some(c) = next_event(lanes, scene, &bsdf, (&frame, wo), (surface.p, ng), u, rays)
+            {
                 indirect += throughput * c;
             }
         }
@@ -267,16 +270,16 @@ fn trace_path(
     out
 }
 
-/// Next-event estimation at a surface point `at` = (position, geometric normal): one
-/// light sample, shadow-tested (one ray) and MIS-weighted against the BSDF; `None` when
+/// Next-event estimation at a surface point `at` = (position, geometric normal), seen
+/// along `wo` in the shading `frame`: one light sample, shadow-tested (one ray) and MIS-weighted against the BSDF; `None` when
 /// it adds nothing. The contribution still has to be multiplied by the path throughput.
 #[inline(always)]
-fn next_event(
+fn next_event<L: Lanes>(
+    lanes: L,
     scene: &RenderScene,
     bsdf: &Bsdf,
-    frame: &Frame,
+    (frame, wo): (&Frame, Vec3),
     (p, ng): (Vec3, Vec3),
-    wo: Vec3,
     u: [f32; 3],
     rays: &mut u64,
 ) -> Option<Vec3> {
@@ -288,7 +291,7 @@ fn next_event(
     let origin = offset(p, ng, ls.wi);
     let tmax = if ls.dist.is_finite() { (ls.dist * (1.0 - 1e-3)).max(0.0) } else { f32::INFINITY };
     *rays += 1;
-    if scene.tlas.occluded(origin, ls.wi, tmax) {
+    if scene.tlas.occluded_with(lanes, origin, ls.wi, tmax) {
         return None;
     }
     Some(if ls.pdf == 0.0 {
@@ -324,7 +327,7 @@ pub fn render_pixels_counted(
         // SAFETY: the CPU has every feature `v3::render_pixels` is compiled with.
         return unsafe { v3::render_pixels(scene, frame, pixels, out, strategy) };
     }
-    render_pixels_kernel(scene, frame, pixels, out, strategy)
+    render_pixels_kernel(Sse, scene, frame, pixels, out, strategy)
 }
 
 /// The kernel compiled for x86-64-v3. A baseline binary still runs on every
@@ -356,13 +359,16 @@ pub(crate) mod v3 {
         out: &mut Vec<PixelSample>,
         strategy: Strategy,
     ) -> RenderStats {
-        render_pixels_kernel(scene, frame, pixels, out, strategy)
+        // x86-64-v3 includes AVX, which `available` checked.
+        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX");
+        render_pixels_kernel(lanes, scene, frame, pixels, out, strategy)
     }
 }
 
 /// The body of [`render_pixels_counted`], inlined into each build of it.
 #[inline(always)]
-fn render_pixels_kernel(
+fn render_pixels_kernel<L: Lanes>(
+    lanes: L,
     scene: &RenderScene,
     frame: u64,
     pixels: &[u32],
@@ -382,6 +388,7 @@ fn render_pixels_kernel(
         for index in 0..spp {
             let mut stream = SampleStream::new(state.seed, frame, pixel, index);
             let s = trace_path(
+                lanes,
                 scene,
                 &mut stream,
                 pos,
@@ -410,7 +417,7 @@ fn render_pixels_kernel(
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
     let (o, d) = primary_ray(scene, pixel);
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
-    let hit = closest(scene, o, d);
+    let hit = closest(Sse, scene, o, d);
     out.emission = seen_emission(scene, &hit, d);
     match hit {
         None => {}
@@ -445,7 +452,7 @@ pub fn area_emission(scene: &RenderScene, pixel: u32, count: u32) -> Vec3 {
         let x = (i as f32 + 0.5) / count as f32;
         let y = (i.reverse_bits() as f64 / 4_294_967_296.0) as f32 + 0.5 / count as f32;
         let (o, d) = scene.camera.ray(corner + Vec2::new(x, y.min(0.999_999)), Vec2::splat(0.5));
-        sum += seen_emission(scene, &closest(scene, o, d), d);
+        sum += seen_emission(scene, &closest(Sse, scene, o, d), d);
     }
     sum / count as f32
 }
@@ -483,7 +490,7 @@ pub fn escaped_emission(scene: &RenderScene, pixel: u32) -> Vec3 {
 /// Picking for the window: the object hit by the ray through (x, y) in pixels.
 pub fn pick(scene: &RenderScene, x: f32, y: f32) -> Option<u32> {
     let (o, d) = scene.camera.ray(Vec2::new(x, y), Vec2::splat(0.5));
-    match closest(scene, o, d)? {
+    match closest(Sse, scene, o, d)? {
         Hit::Surface(s) => Some(s.object),
         Hit::Light(..) => None,
     }
@@ -539,7 +546,7 @@ mod tests {
             let scene = RenderScene::new(assets, &state).unwrap();
             let pixels: Vec<u32> = (0..40 * 30).collect();
             let (mut base, mut wide) = (Vec::new(), Vec::new());
-            let a = render_pixels_kernel(&scene, 3, &pixels, &mut base, Strategy::NeeMis);
+            let a = render_pixels_kernel(Sse, &scene, 3, &pixels, &mut base, Strategy::NeeMis);
             // SAFETY: checked `v3::available` above.
             let b = unsafe { v3::render_pixels(&scene, 3, &pixels, &mut wide, Strategy::NeeMis) };
             assert_eq!(a, b, "{kind:?}: work counters differ");

@@ -15,7 +15,7 @@ use obvhs::BvhBuildParams;
 use super::blas::{build_tri_bvh, Blas};
 use super::traverse::{intersect_node, restart};
 use super::triangle::TriEdges;
-use super::wide::{WideBvh, WideRay};
+use super::wide::{Lanes, Sse, WideBvh, WideRay};
 
 /// One placed instance of a BLAS.
 #[derive(Clone)]
@@ -149,23 +149,35 @@ impl Tlas {
     /// Closest hit along `origin + t * dir` for t in (0, tmax).
     #[inline(always)]
     pub fn intersect(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        self.intersect_with(Sse, origin, dir, tmax)
+    }
+
+    /// Whether anything blocks `origin + t * dir` for t in (0, tmax).
+    #[inline(always)]
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.occluded_with(Sse, origin, dir, tmax)
+    }
+
+    /// [`Tlas::intersect`] with node tests on `L`'s registers (same hits).
+    #[inline(always)]
+    pub fn intersect_with<L: Lanes>(
+        &self,
+        _lanes: L,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+    ) -> Option<Hit> {
         let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        if let Some(h) = self.flat.wide.intersect(&WideRay::new(origin, dir), tmax) {
+        if let Some(h) = self.flat.wide.intersect::<L>(&WideRay::new(origin, dir), tmax) {
             let (instance, prim) = self.flat.owner[h.prim as usize];
             best = Hit { t: h.t, instance, prim, u: h.u, v: h.v };
         }
         if self.large.is_empty() {
             return (best.instance != u32::MAX).then_some(best);
         }
-        let instance_hit = |index: u32, best: &mut Hit| {
-            let inst = &self.instances[index as usize];
-            let o = inst.world_to_object.transform_point3a(origin);
-            let d = inst.world_to_object.transform_vector3a(dir);
-            if let Some(h) = inst.blas.wide.intersect(&WideRay::new(o, d), best.t) {
-                *best = Hit { t: h.t, instance: index, prim: h.prim, u: h.u, v: h.v };
-            }
-        };
+        let instance_hit =
+            |index: u32, best: &mut Hit| self.instance_hit::<L>(index, origin, dir, best);
         if let [only] = self.large[..] {
             // One large instance: its BLAS root bounds it already.
             instance_hit(only, &mut best);
@@ -188,22 +200,38 @@ impl Tlas {
         (best.instance != u32::MAX).then_some(best)
     }
 
-    /// Whether anything blocks `origin + t * dir` for t in (0, tmax).
+    /// Closest hit in instance `index`'s BLAS nearer than `best` (a method, not a closure,
+    /// so that `inline(always)` carries the AVX node test into the dispatched kernel).
     #[inline(always)]
-    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+    fn instance_hit<L: Lanes>(&self, index: u32, origin: Vec3A, dir: Vec3A, best: &mut Hit) {
+        let inst = &self.instances[index as usize];
+        let o = inst.world_to_object.transform_point3a(origin);
+        let d = inst.world_to_object.transform_vector3a(dir);
+        if let Some(h) = inst.blas.wide.intersect::<L>(&WideRay::new(o, d), best.t) {
+            *best = Hit { t: h.t, instance: index, prim: h.prim, u: h.u, v: h.v };
+        }
+    }
+
+    /// Whether instance `index`'s BLAS blocks the ray before `tmax`.
+    #[inline(always)]
+    fn instance_blocks<L: Lanes>(&self, index: u32, origin: Vec3A, dir: Vec3A, tmax: f32) -> bool {
+        let inst = &self.instances[index as usize];
+        let o = inst.world_to_object.transform_point3a(origin);
+        let d = inst.world_to_object.transform_vector3a(dir);
+        inst.blas.wide.occluded::<L>(&WideRay::new(o, d), tmax)
+    }
+
+    /// [`Tlas::occluded`] with node tests on `L`'s registers (same answers).
+    #[inline(always)]
+    pub fn occluded_with<L: Lanes>(&self, _lanes: L, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        if self.flat.wide.occluded(&WideRay::new(origin, dir), tmax) {
+        if self.flat.wide.occluded::<L>(&WideRay::new(origin, dir), tmax) {
             return true;
         }
         if self.large.is_empty() {
             return false;
         }
-        let instance_blocks = |index: u32| {
-            let inst = &self.instances[index as usize];
-            let o = inst.world_to_object.transform_point3a(origin);
-            let d = inst.world_to_object.transform_vector3a(dir);
-            inst.blas.wide.occluded(&WideRay::new(o, d), tmax)
-        };
+        let instance_blocks = |index: u32| self.instance_blocks::<L>(index, origin, dir, tmax);
         if let [only] = self.large[..] {
             return instance_blocks(only);
         }

@@ -27,6 +27,44 @@ use obvhs::cwbvh::CwBvh;
 
 use super::triangle::TriEdges;
 
+/// Which instructions the node test may use: [`Sse`] on every x86-64, [`Avx`] (one
+/// eight-lane register per plane) only where the CPU has AVX, which its constructor
+/// checks. Both give the same bits.
+pub trait Lanes: Copy {
+    /// Whether node tests run on eight-lane AVX registers.
+    const AVX: bool;
+}
+
+/// Node tests in two four-lane halves (every x86-64; scalar elsewhere).
+#[derive(Clone, Copy, Debug)]
+pub struct Sse;
+
+impl Lanes for Sse {
+    const AVX: bool = false;
+}
+
+/// Node tests in one eight-lane AVX register per plane: only a CPU with AVX has one.
+#[derive(Clone, Copy, Debug)]
+pub struct Avx(());
+
+impl Lanes for Avx {
+    const AVX: bool = true;
+}
+
+impl Avx {
+    /// The token, where this CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    pub fn detect() -> Option<Self> {
+        std::is_x86_feature_detected!("avx").then_some(Self(()))
+    }
+
+    /// The token, where this CPU has AVX (never, off x86-64).
+    #[cfg(not(target_arch = "x86_64"))]
+    pub fn detect() -> Option<Self> {
+        None
+    }
+}
+
 /// A child reference with this bit set is a leaf (its packet's index below it).
 const LEAF: u32 = 0x8000_0000;
 /// Stack entries held inline; deeper traversals spill to the heap.
@@ -119,11 +157,35 @@ impl Node {
     /// halves (explicit, because the auto-vectoriser split the lanes unevenly).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn hits(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
+    fn hits<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
         use std::arch::x86_64::*;
         let p = &self.planes;
         let (n, f) = (ray.near, ray.far);
         let mut tnear = [0.0f32; 8];
+        if L::AVX {
+            // SAFETY: an `Avx` token exists only where the CPU has AVX; the loads read
+            // whole 32-byte aligned rows of `planes`, the store all of `tnear`.
+            let mask = unsafe {
+                let o = ray.o.map(|x| _mm256_set1_ps(x));
+                let inv = ray.inv.map(|x| _mm256_set1_ps(x));
+                let (zero, tmax) = (_mm256_setzero_ps(), _mm256_set1_ps(tmax));
+                let t = |row: usize, axis: usize| {
+                    let b = _mm256_load_ps(p[row].as_ptr());
+                    _mm256_mul_ps(_mm256_sub_ps(b, o[axis]), inv[axis])
+                };
+                let t0 = _mm256_max_ps(
+                    _mm256_max_ps(t(n[0], 0), t(n[1], 1)),
+                    _mm256_max_ps(t(n[2], 2), zero),
+                );
+                let t1 = _mm256_min_ps(
+                    _mm256_min_ps(t(f[0], 0), t(f[1], 1)),
+                    _mm256_min_ps(t(f[2], 2), tmax),
+                );
+                _mm256_storeu_ps(tnear.as_mut_ptr(), t0);
+                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32
+            };
+            return (mask & self.valid, tnear);
+        }
         let mut mask = 0u32;
         // SAFETY: SSE is part of x86_64; every load reads four floats inside a row of
         // `planes` (rows are 32-byte aligned by `Node`'s alignment), the store four of
@@ -151,7 +213,7 @@ impl Node {
     /// The same test lane by lane, where there is no SSE.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
-    fn hits(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
+    fn hits<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
         let p = &self.planes;
         let (n, f) = (ray.near, ray.far);
         let t = |row: usize, axis: usize, i: usize| (p[row][i] - ray.o[axis]) * ray.inv[axis];
@@ -365,7 +427,7 @@ impl WideBvh {
 
     /// The closest triangle the ray hits in (0, tmax).
     #[inline(always)]
-    pub(super) fn intersect(&self, ray: &WideRay, tmax: f32) -> Option<TriHit> {
+    pub(super) fn intersect<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> Option<TriHit> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -375,7 +437,7 @@ impl WideBvh {
         loop {
             if current & LEAF == 0 {
                 let node = &self.nodes[current as usize];
-                let (mask, tnear) = node.hits(ray, best.t);
+                let (mask, tnear) = node.hits::<L>(ray, best.t);
                 if mask != 0 {
                     let first = mask.trailing_zeros() as usize;
                     if mask & (mask - 1) == 0 {
@@ -436,7 +498,7 @@ impl WideBvh {
 
     /// Whether any triangle blocks the ray in (0, tmax).
     #[inline(always)]
-    pub(super) fn occluded(&self, ray: &WideRay, tmax: f32) -> bool {
+    pub(super) fn occluded<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
@@ -445,7 +507,7 @@ impl WideBvh {
         loop {
             if current & LEAF == 0 {
                 let node = &self.nodes[current as usize];
-                let (mut mask, _) = node.hits(ray, tmax);
+                let (mut mask, _) = node.hits::<L>(ray, tmax);
                 if mask != 0 {
                     current = node.child[mask.trailing_zeros() as usize];
                     mask &= mask - 1;
