@@ -89,7 +89,8 @@ impl CameraRays {
         // Uniform point on the lens disc; rays converge on the plane in focus.
         let r = self.aperture * lens.x.sqrt();
         let phi = std::f32::consts::TAU * lens.y;
-        let offset = self.right * (r * phi.cos()) + self.up * (r * phi.sin());
+        let (sin, cos) = super::trig::sin_cos(phi);
+        let offset = self.right * (r * cos) + self.up * (r * sin);
         let focus = self.origin + dir * (self.focus_distance / dir.dot(self.forward));
         let origin = self.origin + offset;
         (origin, (focus - origin).normalize())

@@ -136,19 +136,20 @@ impl Environment {
             Self::Constant(c) => {
                 let z = 1.0 - 2.0 * u.x;
                 let r = (1.0 - z * z).max(0.0).sqrt();
-                let phi = 2.0 * PI * u.y;
-                (Vec3::new(r * phi.cos(), z, r * phi.sin()), *c, 1.0 / (4.0 * PI))
+                let (sin, cos) = super::trig::sin_cos(2.0 * PI * u.y);
+                (Vec3::new(r * cos, z, r * sin), *c, 1.0 / (4.0 * PI))
             }
             Self::Map(m) => {
                 let (v, pdf_v, row) = m.marginal.sample(u.y);
                 let (uu, pdf_u, _) = m.conditional[row].sample(u.x);
                 let theta = v * PI;
                 let phi = uu * 2.0 * PI;
-                let sin_theta = theta.sin();
+                let (sin_theta, cos_theta) = super::trig::sin_cos(theta);
                 if sin_theta <= 0.0 {
                     return (Vec3::Y, Vec3::ZERO, 0.0);
                 }
-                let local = Vec3::new(sin_theta * phi.cos(), theta.cos(), sin_theta * phi.sin());
+                let (sin_phi, cos_phi) = super::trig::sin_cos(phi);
+                let local = Vec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi);
                 let dir = (m.to_world * local).normalize();
                 // The density is pdf_v · pdf_u / (2π² sin θ); evaluating it through
                 // `pdf` keeps sample and evaluation identical at texel borders.

@@ -259,7 +259,8 @@ impl Lights {
         let cos = 1.0 - u.x * (1.0 - sun.cos_max);
         let sin = (1.0 - cos * cos).max(0.0).sqrt();
         let phi = 2.0 * PI * u.y;
-        let wi = sun.frame.to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), cos));
+        let (sin_phi, cos_phi) = super::trig::sin_cos(phi);
+        let wi = sun.frame.to_world(Vec3::new(sin * cos_phi, sin * sin_phi, cos));
         let pdf = self.strategy_pmf / (2.0 * PI * (1.0 - sun.cos_max));
         LightSample { wi, dist: f32::INFINITY, radiance: sun.radiance, pdf }
     }

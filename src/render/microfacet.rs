@@ -105,7 +105,7 @@ impl Ggx {
         let t2 = vh.cross(t1);
         let r = u.x.sqrt();
         let phi = 2.0 * PI * u.y;
-        let (sin, cos) = phi.sin_cos();
+        let (sin, cos) = super::trig::sin_cos(phi);
         let p1 = r * cos;
         let mut p2 = r * sin;
         let s = 0.5 * (1.0 + vh.z);
@@ -175,7 +175,7 @@ pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
     } else {
         (a.y, PI / 2.0 - PI / 4.0 * (a.x / a.y))
     };
-    let (s, c) = phi.sin_cos();
+    let (s, c) = super::trig::sin_cos(phi);
     let (x, y) = (r * c, r * s);
     Vec3::new(x, y, (1.0 - x * x - y * y).max(0.0).sqrt())
 }

@@ -22,6 +22,7 @@ pub mod lights;
 pub mod microfacet;
 pub mod sampler;
 pub mod testscenes;
+pub mod trig;
 
 use std::collections::HashMap;
 use std::sync::Arc;

@@ -1,0 +1,56 @@
+//! Sine and cosine for the render kernel, in plain IEEE arithmetic.
+//!
+//! glibc picks its `sincosf` at load time by CPU (an FMA variant where the CPU has FMA),
+//! so the same sample could differ in the last bit between two workers of one grid, which
+//! the ARCHITECTURE invariant forbids; a libm call also cost 4 % of a Cornell box frame.
+//! This is Cephes' `sinf`/`cosf` (Moshier): Cody–Waite reduction by π/2 in three parts,
+//! then degree-7 and degree-8 polynomials on |r| ≤ π/4; about 1e-7 absolute error, and
+//! the same bits in every build, as every operation is a single IEEE add or multiply.
+
+/// (sin x, cos x) for |x| up to a few thousand (the kernel's angles are within ±2π).
+#[inline(always)]
+pub fn sin_cos(x: f32) -> (f32, f32) {
+    const FRAC_2_PI: f32 = std::f32::consts::FRAC_2_PI;
+    // π/2 = P1 + P2 + P3, with P1 and P2 short enough that k·P1 and k·P2 are exact.
+    const P1: f32 = 1.570_312_5;
+    const P2: f32 = 4.837_512_969_970_703e-4;
+    const P3: f32 = 7.549_789_954_891_882e-8;
+    let k = (x * FRAC_2_PI + if x >= 0.0 { 0.5 } else { -0.5 }) as i32;
+    let kf = k as f32;
+    let r = ((x - kf * P1) - kf * P2) - kf * P3;
+    let z = r * r;
+    let s = r + r * z * (-1.666_665_5e-1 + z * (8.332_161e-3 + z * -1.951_529_6e-4));
+    let c = 1.0 - 0.5 * z + z * z * (4.166_664_6e-2 + z * (-1.388_731_6e-3 + z * 2.443_315_7e-5));
+    // Quadrant k: odd swaps sin and cos, k & 2 negates sin, (k + 1) & 2 negates cos;
+    // done on the bits, because the quadrant of a random angle defeats a branch.
+    let (sb, cb) = (s.to_bits(), c.to_bits());
+    let swap = 0u32.wrapping_sub(k as u32 & 1);
+    let sin = (sb & !swap) | (cb & swap);
+    let cos = (cb & !swap) | (sb & swap);
+    let sin_sign = (k as u32 & 2) << 30;
+    let cos_sign = (k.wrapping_add(1) as u32 & 2) << 30;
+    (f32::from_bits(sin ^ sin_sign), f32::from_bits(cos ^ cos_sign))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn matches_double_precision_sin_and_cos() {
+        let mut worst = 0.0f64;
+        for i in -200_000..=200_000 {
+            let x = i as f32 * (4.0 * std::f32::consts::PI / 200_000.0);
+            let (s, c) = sin_cos(x);
+            let (es, ec) = (x as f64).sin_cos();
+            worst = worst.max((s as f64 - es).abs()).max((c as f64 - ec).abs());
+        }
+        assert!(worst < 2e-7, "worst absolute error {worst:e}");
+        // Quadrant boundaries and signs.
+        assert_eq!(sin_cos(0.0), (0.0, 1.0));
+        let (s, c) = sin_cos(std::f32::consts::FRAC_PI_2);
+        assert!((s - 1.0).abs() < 1e-7 && c.abs() < 1e-7);
+        let (s, c) = sin_cos(-std::f32::consts::PI);
+        assert!(s.abs() < 1e-7 && (c + 1.0).abs() < 1e-7);
+    }
+}
