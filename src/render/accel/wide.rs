@@ -67,6 +67,10 @@ impl Avx {
 
 /// A child reference with this bit set is a leaf (its packet's index below it).
 const LEAF: u32 = 0x8000_0000;
+/// Far distances of a box are scaled by this before the overlap test: Ize's robust
+/// traversal factor 1 + 2γ₃ ("Robust BVH Ray Traversal", JCGT 2013), so that rounding
+/// in the slab distances cannot drop a box the ray touches.
+const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 /// Stack entries held inline; deeper traversals spill to the heap.
 const STACK: usize = 64;
 
@@ -177,10 +181,8 @@ impl Node {
                     _mm256_max_ps(t(n[0], 0), t(n[1], 1)),
                     _mm256_max_ps(t(n[2], 2), zero),
                 );
-                let t1 = _mm256_min_ps(
-                    _mm256_min_ps(t(f[0], 0), t(f[1], 1)),
-                    _mm256_min_ps(t(f[2], 2), tmax),
-                );
+                let far = _mm256_min_ps(_mm256_min_ps(t(f[0], 0), t(f[1], 1)), t(f[2], 2));
+                let t1 = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(ROBUST)), tmax);
                 _mm256_storeu_ps(tnear.as_mut_ptr(), t0);
                 _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32
             };
@@ -201,8 +203,8 @@ impl Node {
                 };
                 let t0 =
                     _mm_max_ps(_mm_max_ps(t(n[0], 0), t(n[1], 1)), _mm_max_ps(t(n[2], 2), zero));
-                let t1 =
-                    _mm_min_ps(_mm_min_ps(t(f[0], 0), t(f[1], 1)), _mm_min_ps(t(f[2], 2), tmax));
+                let far = _mm_min_ps(_mm_min_ps(t(f[0], 0), t(f[1], 1)), t(f[2], 2));
+                let t1 = _mm_min_ps(_mm_mul_ps(far, _mm_set1_ps(ROBUST)), tmax);
                 _mm_storeu_ps(tnear.as_mut_ptr().add(4 * half), t0);
                 mask |= (_mm_movemask_ps(_mm_cmple_ps(t0, t1)) as u32) << (4 * half);
             }
@@ -221,7 +223,8 @@ impl Node {
         let mut mask = 0u32;
         for i in 0..8 {
             let t0 = max(max(t(n[0], 0, i), t(n[1], 1, i)), max(t(n[2], 2, i), 0.0));
-            let t1 = min(min(t(f[0], 0, i), t(f[1], 1, i)), min(t(f[2], 2, i), tmax));
+            let far = min(min(t(f[0], 0, i), t(f[1], 1, i)), t(f[2], 2, i));
+            let t1 = min(far * ROBUST, tmax);
             tnear[i] = t0;
             mask |= u32::from(t0 <= t1) << i;
         }
@@ -405,11 +408,16 @@ impl WideBvh {
                 node.valid |= 1 << i;
                 for (plane, q) in quantised.iter().enumerate() {
                     let axis = plane / 2;
-                    // q · 2^k is exact; one ulp outwards covers the one rounding of the
-                    // sum, so the box still holds everything the CWBVH's did.
+                    // The CWBVH quantised a rounded difference, so its planes may sit a
+                    // rounding inside the true bounds; a 4096th of a quantum and two
+                    // ulps of the decoded plane outwards cover that and the decoding.
                     let x = cw.p[axis] + q[i] as f32 * ext[axis];
-                    node.planes[plane][i] =
-                        if plane % 2 == 0 { x.next_down() } else { x.next_up() };
+                    let pad = ext[axis] * (1.0 / 4096.0);
+                    node.planes[plane][i] = if plane % 2 == 0 {
+                        (x - pad).next_down().next_down()
+                    } else {
+                        (x + pad).next_up().next_up()
+                    };
                 }
                 let low = u32::from(meta & 0x1f);
                 node.child[i] = if low >= 24 {
