@@ -15,7 +15,7 @@ use obvhs::BvhBuildParams;
 use super::blas::{build_tri_bvh, Blas};
 use super::traverse::{intersect_node, restart};
 use super::triangle::TriEdges;
-use super::wide::{Lanes, Sse, WideBvh, WideRay};
+use super::wide::{LaneFill, Lanes, Sse, WideBvh, WideRay};
 
 /// One placed instance of a BLAS.
 #[derive(Clone)]
@@ -144,6 +144,21 @@ impl Tlas {
         let bvh = build_cwbvh(&aabbs, BvhBuildParams::medium_build(), &mut Duration::default());
         let large = bvh.primitive_indices.iter().map(|&k| large[k as usize]).collect();
         Self { bvh, large, flat, instances }
+    }
+
+    /// Lane fill of the trees a ray may enter: the flattened small instances and each
+    /// large mesh's BLAS once (however many instances share it).
+    pub fn lane_fill(&self) -> LaneFill {
+        let mut seen = Vec::new();
+        let mut fill = self.flat.wide.lane_fill();
+        for &i in &self.large {
+            let blas = &self.instances[i as usize].blas;
+            if !seen.iter().any(|b| Arc::ptr_eq(b, blas)) {
+                fill = fill.add(blas.wide.lane_fill());
+                seen.push(blas.clone());
+            }
+        }
+        fill
     }
 
     /// Closest hit along `origin + t * dir` for t in (0, tmax).

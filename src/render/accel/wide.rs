@@ -105,6 +105,38 @@ pub(super) struct WideBvh {
     packets: Vec<Packet>,
 }
 
+/// How full a tree's SIMD lanes are: of the eight lanes of every node test, those holding
+/// a child box, and of the four lanes of every leaf test, those holding a triangle.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LaneFill {
+    pub node_lanes_used: u64,
+    pub node_lanes: u64,
+    pub leaf_lanes_used: u64,
+    pub leaf_lanes: u64,
+}
+
+impl LaneFill {
+    /// Sums two trees' counts.
+    pub fn add(self, o: Self) -> Self {
+        Self {
+            node_lanes_used: self.node_lanes_used + o.node_lanes_used,
+            node_lanes: self.node_lanes + o.node_lanes,
+            leaf_lanes_used: self.leaf_lanes_used + o.leaf_lanes_used,
+            leaf_lanes: self.leaf_lanes + o.leaf_lanes,
+        }
+    }
+
+    /// Used share of the node-test lanes (0 for an empty tree).
+    pub fn node_occupancy(&self) -> f64 {
+        self.node_lanes_used as f64 / self.node_lanes.max(1) as f64
+    }
+
+    /// Used share of the leaf-test lanes (0 for an empty tree).
+    pub fn leaf_occupancy(&self) -> f64 {
+        self.leaf_lanes_used as f64 / self.leaf_lanes.max(1) as f64
+    }
+}
+
 /// A ray prepared for node tests: which plane is near on each axis, and the inverse
 /// direction (obvhs's safe inverse, so that axis-parallel rays stay finite).
 pub(super) struct WideRay {
@@ -435,6 +467,20 @@ impl WideBvh {
             out.nodes.push(node);
         }
         out
+    }
+
+    /// How many of this tree's node and leaf lanes hold something.
+    pub(super) fn lane_fill(&self) -> LaneFill {
+        LaneFill {
+            node_lanes_used: self.nodes.iter().map(|n| u64::from(n.valid.count_ones())).sum(),
+            node_lanes: 8 * self.nodes.len() as u64,
+            leaf_lanes_used: self
+                .packets
+                .iter()
+                .map(|p| p.prim.iter().filter(|&&i| i != u32::MAX).count() as u64)
+                .sum(),
+            leaf_lanes: 4 * self.packets.len() as u64,
+        }
     }
 
     /// The closest triangle the ray hits in (0, tmax).

@@ -76,6 +76,11 @@ pub struct TraceReport {
     pub samples: u64,
     pub rays: u64,
     pub runs: u32,
+    /// Share of the eight lanes of a BVH node test that hold a child box, over the
+    /// scene's trees (the CPU tracer's SIMD runs across a node's children).
+    pub node_lane_occupancy: f64,
+    /// Share of the four lanes of a leaf's triangle test that hold a triangle.
+    pub leaf_lane_occupancy: f64,
 }
 
 /// Benchmarks one scene: the state's resolution and render settings are
@@ -117,6 +122,8 @@ pub fn bench_scene(
         samples: stats.samples,
         rays: stats.rays,
         runs: settings.runs.max(1),
+        node_lane_occupancy: scene.tlas().lane_fill().node_occupancy(),
+        leaf_lane_occupancy: scene.tlas().lane_fill().leaf_occupancy(),
     })
 }
 
@@ -153,6 +160,9 @@ mod tests {
         assert!(r.samples_per_second_per_core > 0.0);
         assert!(r.cpu_seconds > 0.0 && r.samples_per_cpu_second > 0.0);
         assert!(r.rays_per_cpu_second >= r.samples_per_cpu_second);
+        // 36 triangles: leaves hold one to three of them, nodes at least two children.
+        assert!(r.leaf_lane_occupancy > 0.25 && r.leaf_lane_occupancy <= 0.75);
+        assert!(r.node_lane_occupancy >= 0.25 && r.node_lane_occupancy <= 1.0);
         let json = serde_json::to_value(&r).unwrap();
         for key in [
             "scene",
@@ -160,6 +170,8 @@ mod tests {
             "rays_per_second_per_core",
             "rays_per_cpu_second",
             "triangles",
+            "node_lane_occupancy",
+            "leaf_lane_occupancy",
         ] {
             assert!(json.get(key).is_some(), "missing {key}");
         }
