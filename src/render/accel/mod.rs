@@ -1,8 +1,11 @@
 //! Two-level ray acceleration: one bottom-level BVH per mesh, a top-level BVH over
 //! the placed instances.
 //!
-//! Both levels are obvhs compressed wide BVHs (CWBVH, eight children per node,
-//! SIMD node tests). A mesh's BLAS is built once and shared by every instance of
+//! Both levels are built by obvhs as compressed wide BVHs (CWBVH, eight children per
+//! node), which the GPU tracer traverses as they are. The CPU traverses meshes and the
+//! flattened small instances through `wide.rs`'s layout of the same trees (full-precision
+//! child boxes, one SIMD lane per child, four-triangle leaf packets); the top level, over
+//! a few instances, keeps the CWBVH traversal. A mesh's BLAS is built once and shared by every instance of
 //! it; a new scene state only rebuilds the small TLAS, so moving an object never
 //! touches its triangles. Triangles are stored in BVH leaf order as a base vertex
 //! and two edges (Möller–Trumbore needs nothing else), which keeps the hot loop on
@@ -15,11 +18,11 @@
 //! test, far more than testing a handful of triangles, and rebuilding a few
 //! hundred world-space triangles per state costs about as little as the TLAS
 //! itself. Large meshes keep the two-level path, so moving them stays cheap.
-
 //!
 //! Files: `triangle.rs` (the triangle test), `blas.rs` (per mesh), `tlas.rs` (per scene
-//! state), `traverse.rs` (the node test and traversal restart both levels use), `export.rs`
-//! (both levels as flat arrays for the GPU path tracer).
+//! state), `wide.rs` (the CPU's traversal of meshes and flattened instances), `traverse.rs`
+//! (the CWBVH node test and traversal restart of the top level), `export.rs` (both levels
+//! as flat arrays for the GPU path tracer).
 
 mod blas;
 pub mod export;
