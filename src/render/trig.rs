@@ -13,8 +13,8 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
     const FRAC_2_PI: f32 = std::f32::consts::FRAC_2_PI;
     // π/2 = P1 + P2 + P3, with P1 and P2 short enough that k·P1 and k·P2 are exact.
     const P1: f32 = 1.570_312_5;
-    const P2: f32 = 4.837_512_969_970_703e-4;
-    const P3: f32 = 7.549_789_954_891_882e-8;
+    const P2: f32 = 4.837_513e-4;
+    const P3: f32 = 7.549_79e-8;
     let k = (x * FRAC_2_PI + if x >= 0.0 { 0.5 } else { -0.5 }) as i32;
     let kf = k as f32;
     let r = ((x - kf * P1) - kf * P2) - kf * P3;

@@ -154,7 +154,7 @@ impl Tlas {
         for &i in &self.large {
             let blas = &self.instances[i as usize].blas;
             if !seen.iter().any(|b| Arc::ptr_eq(b, blas)) {
-                fill = fill.add(blas.wide.lane_fill());
+                fill = fill + blas.wide.lane_fill();
                 seen.push(blas.clone());
             }
         }

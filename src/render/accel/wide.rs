@@ -115,9 +115,11 @@ pub struct LaneFill {
     pub leaf_lanes: u64,
 }
 
-impl LaneFill {
-    /// Sums two trees' counts.
-    pub fn add(self, o: Self) -> Self {
+/// Two trees' counts together.
+impl std::ops::Add for LaneFill {
+    type Output = Self;
+
+    fn add(self, o: Self) -> Self {
         Self {
             node_lanes_used: self.node_lanes_used + o.node_lanes_used,
             node_lanes: self.node_lanes + o.node_lanes,
@@ -125,7 +127,9 @@ impl LaneFill {
             leaf_lanes: self.leaf_lanes + o.leaf_lanes,
         }
     }
+}
 
+impl LaneFill {
     /// Used share of the node-test lanes (0 for an empty tree).
     pub fn node_occupancy(&self) -> f64 {
         self.node_lanes_used as f64 / self.node_lanes.max(1) as f64
