@@ -2,9 +2,9 @@
 //! all of it in this folder.
 //!
 //! Computed on the master for every pixel of a frame's scene state (DESIGN.md), by the
-//! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel) or the wgpu raster pass
-//! ([`GpuGBuffer`]: `gpu.rs` with its device objects in `raster.rs` and its WGSL in
-//! `raster.wgsl`); [`GBufferSource`] picks one and caches by state version. `emission.rs`
+//! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel, in the dispatched
+//! kernel build) or the wgpu raster pass ([`GpuGBuffer`]: `gpu.rs` with its device
+//! objects in `raster.rs` and its WGSL in `raster.wgsl`); [`GBufferSource`] picks one and caches by state version. `emission.rs`
 //! refines the directly seen emission of converging frames; `ahead.rs` computes a new
 //! state's G-buffer on its own thread before its first frame is composed (`--gbuffer-ahead`).
 //! Stored as separate planes (structure of arrays) because each pass reads only some of
@@ -25,7 +25,7 @@ pub mod emission;
 pub mod gpu;
 mod raster;
 
-use crate::render::{primary_hit, PixelSample, RenderError, RenderScene};
+use crate::render::{primary_hits, PixelSample, RenderError, RenderScene};
 pub use gpu::GpuGBuffer;
 
 /// Object id of pixels whose camera ray hit no object.
@@ -90,8 +90,13 @@ impl GBuffer {
     /// (`render::primary_hit`), rows in parallel.
     pub fn from_scene(scene: &RenderScene, assets: &Assets) -> Self {
         let res = scene.state().resolution;
-        let samples: Vec<PixelSample> =
-            (0..res.pixels() as u32).into_par_iter().map(|p| primary_hit(scene, p)).collect();
+        // Chunks of rows' worth of pixels, each one call into the dispatched kernel build.
+        const CHUNK: usize = 4096;
+        let mut samples = vec![PixelSample::default(); res.pixels()];
+        samples
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| primary_hits(scene, (c * CHUNK) as u32, chunk));
         Self::from_samples(res.width, res.height, &samples, scene_scale(scene.state(), assets))
     }
 

@@ -365,6 +365,15 @@ pub(crate) mod v3 {
         let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX");
         render_pixels_kernel(lanes, scene, frame, pixels, out, strategy)
     }
+
+    /// # Safety
+    /// Only on a CPU for which [`available`] is true.
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt,fma")]
+    pub unsafe fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
+        // x86-64-v3 includes AVX, which `available` checked.
+        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX");
+        primary_hits_with(lanes, scene, first, out)
+    }
 }
 
 /// The body of [`render_pixels_counted`], inlined into each build of it.
@@ -417,9 +426,32 @@ fn render_pixels_kernel<L: Lanes>(
 
 /// G-buffer sample through the pixel centre (reflected radiance zero).
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
+    primary_hit_with(Sse, scene, pixel)
+}
+
+/// [`primary_hit`] of pixels `first..first + out.len()` into `out`, in the kernel build
+/// [`render_pixels_counted`] would pick (the same values bit for bit).
+pub fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
+    #[cfg(target_arch = "x86_64")]
+    if v3::available() {
+        // SAFETY: the CPU has every feature `v3::primary_hits` is compiled with.
+        return unsafe { v3::primary_hits(scene, first, out) };
+    }
+    primary_hits_with(Sse, scene, first, out)
+}
+
+#[inline(always)]
+fn primary_hits_with<L: Lanes>(lanes: L, scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
+    for (pixel, s) in (first..).zip(out.iter_mut()) {
+        *s = primary_hit_with(lanes, scene, pixel);
+    }
+}
+
+#[inline(always)]
+fn primary_hit_with<L: Lanes>(lanes: L, scene: &RenderScene, pixel: u32) -> PixelSample {
     let (o, d) = primary_ray(scene, pixel);
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
-    let hit = closest(Sse, scene, o, d);
+    let hit = closest(lanes, scene, o, d);
     out.emission = seen_emission(scene, &hit, d);
     match hit {
         None => {}
@@ -556,6 +588,13 @@ mod tests {
             for (i, (x, y)) in base.iter().zip(&wide).enumerate() {
                 assert_eq!(x, y, "{kind:?}: pixel {i} differs");
             }
+            // The G-buffer's primary hits too (dispatched to v3 here).
+            let mut hits = vec![PixelSample::default(); pixels.len()];
+            primary_hits(&scene, 0, &mut hits);
+            for (i, h) in hits.iter().enumerate() {
+                assert_eq!(*h, primary_hit(&scene, i as u32), "{kind:?}: G-buffer pixel {i}");
+            }
+            assert!(hits.iter().any(|h| h.object != u32::MAX), "{kind:?}: no primary hit");
         }
     }
 }

@@ -38,8 +38,8 @@ use envmap::Environment;
 use lights::{AreaLight, Lights};
 
 pub use integrator::{
-    area_emission, escaped_emission, pick, primary_hit, render_pixels, render_pixels_counted,
-    RenderStats, Strategy,
+    area_emission, escaped_emission, pick, primary_hit, primary_hits, render_pixels,
+    render_pixels_counted, RenderStats, Strategy,
 };
 
 /// Why a scene state cannot be rendered with the given assets.
