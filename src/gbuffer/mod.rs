@@ -4,9 +4,10 @@
 //! Computed on the master for every pixel of a frame's scene state (DESIGN.md), by the
 //! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel, in the dispatched
 //! kernel build) or the wgpu raster pass ([`GpuGBuffer`]: `gpu.rs` with its device
-//! objects in `raster.rs` and its WGSL in `raster.wgsl`); [`GBufferSource`] picks one and caches by state version. `emission.rs`
-//! refines the directly seen emission of converging frames; `ahead.rs` computes a new
-//! state's G-buffer on its own thread before its first frame is composed (`--gbuffer-ahead`).
+//! objects in `raster.rs` and its WGSL in `raster.wgsl`); [`GBufferSource`] picks one
+//! and caches by state version. `emission.rs` refines the directly seen emission of
+//! converging frames; `ahead.rs` computes a new state's G-buffer on its own thread before
+//! its first frame is composed (`--gbuffer-ahead`).
 //! Stored as separate planes (structure of arrays) because each pass reads only some of
 //! them and the GPU uploads each as its own texture.
 
