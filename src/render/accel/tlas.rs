@@ -191,11 +191,9 @@ impl Tlas {
         if self.large.is_empty() {
             return (best.instance != u32::MAX).then_some(best);
         }
-        let instance_hit =
-            |index: u32, best: &mut Hit| self.instance_hit::<L>(index, origin, dir, best);
         if let [only] = self.large[..] {
             // One large instance: its BLAS root bounds it already.
-            instance_hit(only, &mut best);
+            self.instance_hit::<L>(only, origin, dir, &mut best);
         } else {
             let mut world = Ray::new(origin, dir, 0.0, best.t);
             let mut state = Traversal::default();
@@ -207,7 +205,8 @@ impl Tlas {
                 state,
                 intersect_node(node, &world, state.oct_inv4),
                 {
-                    instance_hit(self.large[state.primitive_id as usize], &mut best);
+                    let index = self.large[state.primitive_id as usize];
+                    self.instance_hit::<L>(index, origin, dir, &mut best);
                     world.tmax = best.t;
                 }
             );
@@ -246,16 +245,16 @@ impl Tlas {
         if self.large.is_empty() {
             return false;
         }
-        let instance_blocks = |index: u32| self.instance_blocks::<L>(index, origin, dir, tmax);
         if let [only] = self.large[..] {
-            return instance_blocks(only);
+            return self.instance_blocks::<L>(only, origin, dir, tmax);
         }
         let world = Ray::new(origin, dir, 0.0, tmax);
         let mut state = Traversal::default();
         restart(&mut state, &self.bvh, dir);
         let mut node;
         obvhs::traverse!(self.bvh, node, state, intersect_node(node, &world, state.oct_inv4), {
-            if instance_blocks(self.large[state.primitive_id as usize]) {
+            let index = self.large[state.primitive_id as usize];
+            if self.instance_blocks::<L>(index, origin, dir, tmax) {
                 return true;
             }
         });

@@ -339,40 +339,20 @@ impl Packet {
         (mask, tuv)
     }
 
-    /// The same test lane by lane, where there is no SSE.
+    /// The same test lane by lane with [`TriEdges::intersect`], where there is no SSE.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
     fn hits(&self, ray: &WideRay, tmax: f32) -> (u32, [[f32; 4]; 3]) {
-        let (o, d) = (&ray.o, &ray.d);
-        let (v0, e1, e2) = (&self.v0, &self.e1, &self.e2);
+        let (o, d) = (Vec3A::from(ray.o), Vec3A::from(ray.d));
         let mut tuv = [[0.0f32; 4]; 3];
         let mut mask = 0;
         for i in 0..4 {
-            let px = d[1] * e2[2][i] - d[2] * e2[1][i];
-            let py = d[2] * e2[0][i] - d[0] * e2[2][i];
-            let pz = d[0] * e2[1][i] - d[1] * e2[0][i];
-            let det = e1[0][i] * px + e1[1][i] * py + e1[2][i] * pz;
-            let inv = 1.0 / det;
-            let sx = o[0] - v0[0][i];
-            let sy = o[1] - v0[1][i];
-            let sz = o[2] - v0[2][i];
-            let u = (sx * px + sy * py + sz * pz) * inv;
-            let qx = sy * e1[2][i] - sz * e1[1][i];
-            let qy = sz * e1[0][i] - sx * e1[2][i];
-            let qz = sx * e1[1][i] - sy * e1[0][i];
-            let v = (d[0] * qx + d[1] * qy + d[2] * qz) * inv;
-            let t = (e2[0][i] * qx + e2[1][i] * qy + e2[2][i] * qz) * inv;
-            let hit = det.abs() >= 1e-12
-                && u >= 0.0
-                && u <= 1.0
-                && v >= 0.0
-                && u + v <= 1.0
-                && t > 0.0
-                && t < tmax;
-            mask |= u32::from(hit) << i;
-            tuv[0][i] = t;
-            tuv[1][i] = u;
-            tuv[2][i] = v;
+            let lane = |rows: &[[f32; 4]; 3]| Vec3A::new(rows[0][i], rows[1][i], rows[2][i]);
+            let tri = TriEdges { v0: lane(&self.v0), e1: lane(&self.e1), e2: lane(&self.e2) };
+            if let Some((t, u, v)) = tri.intersect(o, d, 0.0, tmax) {
+                mask |= 1 << i;
+                [tuv[0][i], tuv[1][i], tuv[2][i]] = [t, u, v];
+            }
         }
         (mask, tuv)
     }

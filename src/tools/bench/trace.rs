@@ -106,6 +106,7 @@ pub fn bench_scene(
     let (seconds, stats) = median_run(&mut runs);
     // Rays of the run with the median CPU time (each run traces another frame).
     let (cpu_seconds, cpu_stats) = median_run(&mut cpu);
+    let lanes = scene.tlas().lane_fill();
     Ok(TraceReport {
         scene: name.to_string(),
         samples_per_second_per_core: stats.samples as f64 / seconds,
@@ -122,8 +123,8 @@ pub fn bench_scene(
         samples: stats.samples,
         rays: stats.rays,
         runs: settings.runs.max(1),
-        node_lane_occupancy: scene.tlas().lane_fill().node_occupancy(),
-        leaf_lane_occupancy: scene.tlas().lane_fill().leaf_occupancy(),
+        node_lane_occupancy: lanes.node_occupancy(),
+        leaf_lane_occupancy: lanes.leaf_occupancy(),
     })
 }
 
