@@ -25,6 +25,7 @@
 use std::mem::MaybeUninit;
 
 use glam::Vec3A;
+use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 
 use super::triangle::TriEdges;
@@ -405,16 +406,6 @@ impl Stack {
     }
 }
 
-/// Surface area (half of it: the constant cancels) of a box in `[lo, hi]` plane order.
-fn half_area(b: &[f32; 6]) -> f32 {
-    let (x, y, z) = (b[1] - b[0], b[3] - b[2], b[5] - b[4]);
-    x * y + y * z + z * x
-}
-
-fn union(a: &[f32; 6], b: &[f32; 6]) -> [f32; 6] {
-    std::array::from_fn(|i| if i % 2 == 0 { a[i].min(b[i]) } else { a[i].max(b[i]) })
-}
-
 /// Merges the leaf children of one node (box, triangles) into packets of up to four.
 /// A CWBVH leaf holds at most three triangles, so most packets ran with lanes empty
 /// (two fifths full on bunny and Sponza), and a packet costs the same test however full.
@@ -422,7 +413,7 @@ fn union(a: &[f32; 6], b: &[f32; 6]) -> [f32; 6] {
 /// with probability in proportion to its area, so one test of the union box costs less
 /// than the two separate tests when area(a ∪ b) < area(a) + area(b). The best such pair
 /// merges first, until no pair fits in four lanes and pays.
-fn pack_leaves(mut leaves: Vec<([f32; 6], Vec<u32>)>) -> Vec<([f32; 6], Vec<u32>)> {
+fn pack_leaves(mut leaves: Vec<(Aabb, Vec<u32>)>) -> Vec<(Aabb, Vec<u32>)> {
     loop {
         let mut best: Option<(f32, usize, usize)> = None;
         for i in 0..leaves.len() {
@@ -431,15 +422,15 @@ fn pack_leaves(mut leaves: Vec<([f32; 6], Vec<u32>)>) -> Vec<([f32; 6], Vec<u32>
                     continue;
                 }
                 let (a, b) = (&leaves[i].0, &leaves[j].0);
-                let ratio = half_area(&union(a, b)) / (half_area(a) + half_area(b)).max(1e-30);
+                let ratio = a.union(b).half_area() / (a.half_area() + b.half_area()).max(1e-30);
                 if ratio < 1.0 && best.is_none_or(|(r, ..)| ratio < r) {
                     best = Some((ratio, i, j));
                 }
             }
         }
         let Some((_, i, j)) = best else { return leaves };
-        let (planes, prims) = leaves.swap_remove(j);
-        leaves[i].0 = union(&leaves[i].0, &planes);
+        let (bounds, prims) = leaves.swap_remove(j);
+        leaves[i].0 = leaves[i].0.union(&bounds);
         leaves[i].1.extend(prims);
     }
 }
@@ -447,9 +438,9 @@ fn pack_leaves(mut leaves: Vec<([f32; 6], Vec<u32>)>) -> Vec<([f32; 6], Vec<u32>
 /// Fills the slots that packing freed: a node takes the children of its largest inner
 /// child in that child's place while they fit in eight slots, so that a ray tests them
 /// in the parent's node test instead of a further one. Parents come before children in
-/// the CWBVH's order, so a pulled-up grandchild can be expanded in turn. Nodes no longer
-/// referenced stay in the array, unreached.
-fn pull_up(lists: &mut [Vec<([f32; 6], u32)>]) {
+/// the CWBVH's order, so a pulled-up grandchild can be expanded in turn; the nodes this
+/// leaves unreferenced are dropped by [`reachable`].
+fn pull_up(lists: &mut [Vec<(Aabb, u32)>]) {
     for n in 0..lists.len() {
         loop {
             let free = 8 - lists[n].len();
@@ -457,7 +448,7 @@ fn pull_up(lists: &mut [Vec<([f32; 6], u32)>]) {
                 .iter()
                 .enumerate()
                 .filter(|(_, (_, c))| c & LEAF == 0 && lists[*c as usize].len() <= free + 1)
-                .max_by(|a, b| half_area(&a.1 .0).total_cmp(&half_area(&b.1 .0)))
+                .max_by(|a, b| a.1 .0.half_area().total_cmp(&b.1 .0.half_area()))
                 .map(|(i, _)| i);
             let Some(i) = pick else { break };
             let (_, child) = lists[n].swap_remove(i);
@@ -469,7 +460,7 @@ fn pull_up(lists: &mut [Vec<([f32; 6], u32)>]) {
 
 /// The nodes reachable from the root, renumbered in depth-first order (the order a
 /// traversal meets them, which keeps a subtree's nodes together in memory).
-fn reachable(mut lists: Vec<Vec<([f32; 6], u32)>>) -> Vec<Vec<([f32; 6], u32)>> {
+fn reachable(mut lists: Vec<Vec<(Aabb, u32)>>) -> Vec<Vec<(Aabb, u32)>> {
     if lists.is_empty() {
         return lists;
     }
@@ -505,7 +496,7 @@ impl WideBvh {
     pub(super) fn build(bvh: &CwBvh, tris: &[TriEdges]) -> Self {
         let mut out = WideBvh { nodes: Vec::with_capacity(bvh.nodes.len()), packets: Vec::new() };
         // Each node's children as (box, reference) before they are laid out.
-        let mut lists: Vec<Vec<([f32; 6], u32)>> = Vec::with_capacity(bvh.nodes.len());
+        let mut lists: Vec<Vec<(Aabb, u32)>> = Vec::with_capacity(bvh.nodes.len());
         for cw in &bvh.nodes {
             let ext = cw.compute_extent();
             let quantised = [
@@ -523,7 +514,7 @@ impl WideBvh {
                 if meta == 0 {
                     continue;
                 }
-                let mut planes = [0.0f32; 6];
+                let mut bounds = Aabb::empty();
                 for (plane, q) in quantised.iter().enumerate() {
                     let axis = plane / 2;
                     // The CWBVH quantised a rounded difference, so its planes may sit a
@@ -531,11 +522,11 @@ impl WideBvh {
                     // ulps of the decoded plane outwards cover that and the decoding.
                     let x = cw.p[axis] + q[i] as f32 * ext[axis];
                     let pad = ext[axis] * (1.0 / 4096.0);
-                    planes[plane] = if plane % 2 == 0 {
-                        (x - pad).next_down().next_down()
+                    if plane % 2 == 0 {
+                        bounds.min[axis] = (x - pad).next_down().next_down();
                     } else {
-                        (x + pad).next_up().next_up()
-                    };
+                        bounds.max[axis] = (x + pad).next_up().next_up();
+                    }
                 }
                 let low = u32::from(meta & 0x1f);
                 if low >= 24 {
@@ -543,25 +534,26 @@ impl WideBvh {
                     debug_assert!(cw.imask & (1 << slot) != 0);
                     let child = cw.child_base_idx
                         + (u32::from(cw.imask) & ((1u32 << slot) - 1)).count_ones();
-                    children.push((planes, child));
+                    children.push((bounds, child));
                 } else {
                     let first = cw.primitive_base_idx + low;
                     let count = (meta >> 5).count_ones();
-                    leaves.push((planes, (first..first + count).collect::<Vec<u32>>()));
+                    leaves.push((bounds, (first..first + count).collect::<Vec<u32>>()));
                 }
             }
-            for (planes, prims) in pack_leaves(leaves) {
+            for (bounds, prims) in pack_leaves(leaves) {
                 out.packets.push(Packet::new(tris, &prims));
-                children.push((planes, LEAF | (out.packets.len() as u32 - 1)));
+                children.push((bounds, LEAF | (out.packets.len() as u32 - 1)));
             }
             lists.push(children);
         }
         pull_up(&mut lists);
         for children in reachable(lists) {
             let mut node = Node { planes: [[0.0; 8]; 6], child: [0; 8], valid: 0 };
-            for (i, (planes, child)) in children.into_iter().enumerate() {
-                for (row, x) in node.planes.iter_mut().zip(planes) {
-                    row[i] = x;
+            for (i, (bounds, child)) in children.into_iter().enumerate() {
+                for axis in 0..3 {
+                    node.planes[2 * axis][i] = bounds.min[axis];
+                    node.planes[2 * axis + 1][i] = bounds.max[axis];
                 }
                 node.child[i] = child;
                 node.valid |= 1 << i;
@@ -695,8 +687,8 @@ mod tests {
     use std::sync::Arc;
 
     /// Packing and pulling up keep every triangle exactly once, inside every box on the
-    /// way to it (so a ray that hits it reaches it), with every node reachable and the lanes fuller than the
-    /// CWBVH's three-per-leaf packets left them.
+    /// way to it (so a ray that hits it reaches it), with every node reachable and the
+    /// lanes fuller than the CWBVH's three-per-leaf packets left them.
     #[test]
     fn packed_layout_keeps_every_triangle_inside_its_boxes() {
         let blas = Blas::build(Arc::new(crate::shapes::sphere(4))).unwrap();
