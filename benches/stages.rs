@@ -179,7 +179,7 @@ fn shading(c: &mut Criterion) {
 
     let (w, h) = (1024u32, 1024u32);
     let texels = (0..w * h).map(|i| Vec3::splat((i % 251) as f32 / 251.0)).collect();
-    let texture = Texture { width: w, height: h, texels };
+    let texture = Texture::linear(w, h, texels);
     let mut group = c.benchmark_group("texture");
     group.throughput(Throughput::Elements(inputs.len() as u64));
     group.bench_function("bilinear_wrap", |b| {

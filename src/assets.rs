@@ -5,7 +5,7 @@
 //! G-buffer and the worker share them read-only behind `Arc`s.
 
 use std::collections::HashMap;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use glam::{Vec2, Vec3};
 use gridlight_actors::state::Geometry;
@@ -39,24 +39,87 @@ impl Mesh {
     }
 }
 
-/// A 2-D image of linear RGB values (albedo maps are decoded from sRGB on load).
+/// A 2-D image of linear RGB values: an albedo map, or an environment map's radiance.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
     pub width: u32,
     pub height: u32,
     /// Row-major, top row first.
-    pub texels: Vec<Vec3>,
+    pub texels: Texels,
+}
+
+/// How a texture's texels are stored.
+///
+/// An 8-bit sRGB albedo map keeps its codes (three bytes a texel) and linearises them
+/// through a 256-entry table at lookup: the same values, bit for bit, as decoding the
+/// whole image to floats on load, in a quarter of the memory. The smaller image is what
+/// matters: a bounce ray's texture lookup lands anywhere in the map and its first texel
+/// load was a cache miss costing 11 % of a Sponza frame with twelve bytes a texel.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Texels {
+    /// Linear RGB floats (environment maps, computed textures).
+    Linear(Vec<Vec3>),
+    /// 8-bit sRGB codes, decoded by [`srgb_to_linear`].
+    Srgb8(Vec<[u8; 3]>),
+}
+
+impl Texels {
+    pub fn len(&self) -> usize {
+        match self {
+            Self::Linear(t) => t.len(),
+            Self::Srgb8(t) => t.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Texel `i` in linear RGB.
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> Vec3 {
+        match self {
+            Self::Linear(t) => t[i],
+            Self::Srgb8(t) => srgb8_to_linear(t[i], srgb_table()),
+        }
+    }
+
+    /// Every texel in linear RGB, in order.
+    pub fn iter(&self) -> impl Iterator<Item = Vec3> + '_ {
+        (0..self.len()).map(|i| self.get(i))
+    }
 }
 
 impl Texture {
+    /// A texture of linear RGB texels.
+    pub fn linear(width: u32, height: u32, texels: Vec<Vec3>) -> Self {
+        Self { width, height, texels: Texels::Linear(texels) }
+    }
+
+    /// A texture of 8-bit sRGB texels.
+    pub fn srgb8(width: u32, height: u32, codes: Vec<[u8; 3]>) -> Self {
+        Self { width, height, texels: Texels::Srgb8(codes) }
+    }
+
     /// Bilinear lookup with wrap-around; `uv` (0,0) is the bottom-left corner as in OBJ.
-    ///
-    /// The wrap costs two float remainders and four texel-index wraps per lookup; done with
-    /// `rem_euclid` they were 16 % of a Sponza frame (a libm `fmodf` call each and 64-bit
-    /// divisions), so both are done here without division, with the same results. Inlined
-    /// into each dispatched build of the kernel (floor is an instruction on x86-64-v3).
     #[inline(always)]
     pub fn sample(&self, uv: Vec2) -> Vec3 {
+        match &self.texels {
+            Texels::Linear(t) => self.bilinear(uv, |i| t[i]),
+            Texels::Srgb8(t) => {
+                let table = srgb_table();
+                self.bilinear(uv, |i| srgb8_to_linear(t[i], table))
+            }
+        }
+    }
+
+    /// The wrap costs two float remainders and four texel-index wraps per lookup; done
+    /// with `rem_euclid` they were 16 % of a Sponza frame (a libm `fmodf` call each and
+    /// 64-bit divisions), so both are done here without division, with the same results.
+    /// Inlined into each dispatched build of the kernel (floor is an instruction on
+    /// x86-64-v3).
+    #[inline(always)]
+    fn bilinear(&self, uv: Vec2, texel: impl Fn(usize) -> Vec3) -> Vec3 {
         let (w, h) = (self.width as f32, self.height as f32);
         let x = unit_wrap(uv.x) * w - 0.5;
         let y = (1.0 - unit_wrap(uv.y)) * h - 0.5;
@@ -68,11 +131,33 @@ impl Texture {
         let (cx0, cx1) = (index_wrap(cx0, xs), index_wrap(cx0 + 1, xs));
         let (cy0, cy1) = (index_wrap(cy0, ys), index_wrap(cy0 + 1, ys));
         let row = self.width as usize;
-        let texel = |xi: usize, yi: usize| self.texels[yi * row + xi];
-        let top = texel(cx0, cy0).lerp(texel(cx1, cy0), fx);
-        let bottom = texel(cx0, cy1).lerp(texel(cx1, cy1), fx);
+        let at = |xi: usize, yi: usize| texel(yi * row + xi);
+        let top = at(cx0, cy0).lerp(at(cx1, cy0), fx);
+        let bottom = at(cx0, cy1).lerp(at(cx1, cy1), fx);
         top.lerp(bottom, fy)
     }
+}
+
+/// The sRGB electro-optical transfer function for one 8-bit code.
+pub fn srgb_to_linear(code: u8) -> f32 {
+    let c = code as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// [`srgb_to_linear`] of every code.
+#[inline]
+pub fn srgb_table() -> &'static [f32; 256] {
+    static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as u8)))
+}
+
+#[inline(always)]
+fn srgb8_to_linear(c: [u8; 3], table: &[f32; 256]) -> Vec3 {
+    Vec3::new(table[c[0] as usize], table[c[1] as usize], table[c[2] as usize])
 }
 
 /// `x.rem_euclid(1.0)` bit for bit up to the sign of a zero result (which the lookup
@@ -131,7 +216,7 @@ mod tests {
         let texel = |xi: f32, yi: f32| {
             let xi = (xi as i64).rem_euclid(t.width as i64) as usize;
             let yi = (yi as i64).rem_euclid(t.height as i64) as usize;
-            t.texels[yi * t.width as usize + xi]
+            t.texels.get(yi * t.width as usize + xi)
         };
         let top = texel(x0, y0).lerp(texel(x0 + 1.0, y0), fx);
         let bottom = texel(x0, y0 + 1.0).lerp(texel(x0 + 1.0, y0 + 1.0), fx);
@@ -139,7 +224,7 @@ mod tests {
     }
 
     #[test]
-    fn wrapped_lookup_matches_rem_euclid_bit_for_bit() {
+    fn wrapped_lookup_matches_rem_euclid_and_srgb_codes_match_floats_bit_for_bit() {
         let special = [
             0.0,
             -0.0,
@@ -173,7 +258,7 @@ mod tests {
         for (w, h) in [(1, 1), (2, 3), (7, 5), (64, 32)] {
             let texels =
                 (0..w * h).map(|i| Vec3::new(i as f32, 1.0 / (1 + i) as f32, 0.5)).collect();
-            let t = Texture { width: w, height: h, texels };
+            let t = Texture::linear(w, h, texels);
             for (i, &u) in coords.iter().enumerate() {
                 let v = coords[(i * 7 + 3) % coords.len()];
                 let (a, b) = (t.sample(Vec2::new(u, v)), sample_by_rem_euclid(&t, Vec2::new(u, v)));
@@ -184,8 +269,23 @@ mod tests {
                 );
             }
         }
+        // An 8-bit sRGB texture gives what decoding it to floats gives, bit for bit.
+        let (w, h) = (7u32, 5u32);
+        let codes: Vec<[u8; 3]> =
+            (0..w * h).map(|i| [i as u8 * 7, 255 - i as u8, (i * 37 % 256) as u8]).collect();
+        let floats = codes.iter().map(|c| Vec3::from_array(c.map(srgb_to_linear))).collect();
+        let (srgb, linear) = (Texture::srgb8(w, h, codes), Texture::linear(w, h, floats));
+        for (i, &u) in coords.iter().enumerate() {
+            let uv = Vec2::new(u, coords[(i * 5 + 1) % coords.len()]);
+            let (a, b) = (srgb.sample(uv), linear.sample(uv));
+            assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "{uv}");
+        }
+        assert_eq!(
+            srgb.texels.iter().collect::<Vec<_>>(),
+            linear.texels.iter().collect::<Vec<_>>()
+        );
         // Non-finite coordinates give the same NaNs.
-        let t = Texture { width: 2, height: 2, texels: vec![Vec3::ONE; 4] };
+        let t = Texture::linear(2, 2, vec![Vec3::ONE; 4]);
         for uv in [Vec2::new(f32::NAN, 0.3), Vec2::new(f32::INFINITY, 0.3)] {
             assert!(t.sample(uv).is_nan() && sample_by_rem_euclid(&t, uv).is_nan());
         }

@@ -47,7 +47,7 @@ fn noise_texture() -> Texture {
             Vec3::new(f(1), f(2), f(3)) / 997.0 * 0.9 + Vec3::splat(0.05)
         })
         .collect();
-    Texture { width: w, height: h, texels }
+    Texture::linear(w, h, texels)
 }
 
 /// A quad in the xy-plane, facing +z, split into two material slots, without normals and

@@ -107,11 +107,8 @@ impl GpuGBuffer {
         });
         let draws = draw_buffer(device, 64);
         let frame_group = frame_group(device, &frame_layout, &view, &draws);
-        let placeholder = texture_group(
-            &ctx,
-            &texture_layout,
-            &Texture { width: 1, height: 1, texels: vec![Vec3::ONE] },
-        );
+        let placeholder =
+            texture_group(&ctx, &texture_layout, &Texture::linear(1, 1, vec![Vec3::ONE]));
         let mut this = Self {
             meshes: HashMap::new(),
             textures: HashMap::new(),

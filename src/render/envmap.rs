@@ -97,7 +97,7 @@ impl Environment {
             let sin_theta = ((y as f32 + 0.5) / h as f32 * PI).sin();
             let row: Vec<f32> = (0..w)
                 .map(|x| {
-                    let c = texture.texels[y * w + x] * scale;
+                    let c = texture.texels.get(y * w + x) * scale;
                     (c.x + c.y + c.z).max(0.0) * sin_theta
                 })
                 .collect();
@@ -124,7 +124,7 @@ impl Environment {
             Self::Constant(c) => *c,
             Self::Map(m) => {
                 let (x, y) = m.texel_of(m.to_map * dir);
-                m.texture.texels[y * m.texture.width as usize + x] * m.scale
+                m.texture.texels.get(y * m.texture.width as usize + x) * m.scale
             }
         }
     }
@@ -206,7 +206,7 @@ mod tests {
                 }
             })
             .collect();
-        Arc::new(Texture { width: w, height: h, texels })
+        Arc::new(Texture::linear(w, h, texels))
     }
 
     #[test]

@@ -566,7 +566,7 @@ mod tests {
             let mut assets = (*assets).clone();
             if textured {
                 let texels = (0..15).map(|i| Vec3::new(0.2, (i % 4) as f32 / 4.0, 0.7)).collect();
-                let texture = crate::assets::Texture { width: 5, height: 3, texels };
+                let texture = crate::assets::Texture::linear(5, 3, texels);
                 assets.textures.insert("checker.png".into(), std::sync::Arc::new(texture));
                 state.materials[0].base_color_texture = Some("checker.png".into());
             }

@@ -4,7 +4,7 @@
 //! Albedo textures are stored as sRGB and converted to linear on load; environment maps
 //! (Radiance `.hdr`, OpenEXR) are linear already and are only checked.
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use glam::Vec3;
 use gridlight_actors::state::{Geometry, SceneState};
@@ -63,12 +63,8 @@ pub fn load_albedo_texture(
     let file = resolver.resolve(asset)?;
     let image = image::open(&file).map_err(|source| AssetError::Image { file, source })?;
     let rgb = image.to_rgb8();
-    let lut = srgb_to_linear_table();
-    let texels = rgb
-        .pixels()
-        .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
-        .collect();
-    Ok(Texture { width: rgb.width(), height: rgb.height(), texels })
+    let codes = rgb.pixels().map(|p| p.0).collect();
+    Ok(Texture::srgb8(rgb.width(), rgb.height(), codes))
 }
 
 /// A linear HDR environment map; non-finite or negative texels are set to zero.
@@ -87,27 +83,13 @@ pub fn load_environment(asset: &str, resolver: &dyn AssetResolver) -> Result<Tex
             }
         })
         .collect();
-    Ok(Texture { width: rgb.width(), height: rgb.height(), texels })
-}
-
-/// The sRGB electro-optical transfer function for one 8-bit code.
-pub fn srgb_to_linear(code: u8) -> f32 {
-    let c = code as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn srgb_to_linear_table() -> &'static [f32; 256] {
-    static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
-    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as u8)))
+    Ok(Texture::linear(rgb.width(), rgb.height(), texels))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::assets::srgb_to_linear;
     use crate::scene::search::AssetSearchPath;
 
     #[test]
@@ -127,7 +109,7 @@ mod tests {
         let resolver = AssetSearchPath::from_dirs(vec![dir.path().into()]);
         let tex = load_albedo_texture("t.png", &resolver).expect("load");
         assert_eq!((tex.width, tex.height), (2, 1));
-        assert_eq!(tex.texels[0], Vec3::ZERO);
-        assert!((tex.texels[1].x - 0.5).abs() < 0.01);
+        assert_eq!(tex.texels.get(0), Vec3::ZERO);
+        assert!((tex.texels.get(1).x - 0.5).abs() < 0.01);
     }
 }
