@@ -61,7 +61,18 @@ struct Surface<'a> {
 
 #[inline(always)]
 fn closest<'a, L: Lanes>(lanes: L, scene: &'a RenderScene, o: Vec3, d: Vec3) -> Option<Hit<'a>> {
-    let hit = scene.tlas.intersect_with(lanes, o, d, f32::INFINITY);
+    resolve(scene, o, d, scene.tlas.intersect_with(lanes, o, d, f32::INFINITY))
+}
+
+/// What the ray `o + t d` reaches given the geometry's closest `hit`: an area light in
+/// front of it, or the hit surface with its shading data.
+#[inline(always)]
+fn resolve<'a>(
+    scene: &'a RenderScene,
+    o: Vec3,
+    d: Vec3,
+    hit: Option<super::accel::Hit>,
+) -> Option<Hit<'a>> {
     let mut tmax = hit.map_or(f32::INFINITY, |h| h.t);
     let mut light = None;
     for q in scene.lights.quads() {
@@ -161,6 +172,8 @@ fn trace_path<L: Lanes>(
     let mut prev_pdf = 0.0f32;
     let mut prev_delta = true;
     let mut depth = 1u32;
+    // The last vertex's shadow ray, traced together with the next bounce's ray.
+    let mut shadow: Option<ShadowRay> = None;
     loop {
         *rays += 1;
         // Adds emitted radiance reached by the path, MIS-weighted against light
@@ -173,7 +186,21 @@ fn trace_path<L: Lanes>(
                 *indirect += throughput * radiance * w;
             }
         };
-        let surface = match closest(lanes, scene, o, d) {
+        let hit = match shadow.take() {
+            Some(s) => {
+                let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
+                    lanes,
+                    (o, d, f32::INFINITY),
+                    (s.origin, s.dir, s.tmax),
+                );
+                if !blocked {
+                    indirect += s.contribution;
+                }
+                hit
+            }
+            None => scene.tlas.intersect_with(lanes, o, d, f32::INFINITY),
+        };
+        let surface = match resolve(scene, o, d, hit) {
             None => {
                 for (radiance, pdf) in lights.escaped(d) {
                     if radiance != Vec3::ZERO {
@@ -239,10 +266,8 @@ fn trace_path<L: Lanes>(
         let u_light = stream.next4();
         if nee && !bsdf.is_delta() {
             let u = [u_light[0], u_light[1], u_light[2]];
-            if let Some(c) = next_event(lanes, scene, &bsdf, (&frame, wo), (surface.p, ng), u, rays)
-            {
-                indirect += throughput * c;
-            }
+            shadow = next_event(scene, &bsdf, (&frame, wo), (surface.p, ng), u, rays)
+                .map(|s| ShadowRay { contribution: throughput * s.contribution, ..s });
         }
 
         // Continue the path by sampling the BSDF.
@@ -266,24 +291,36 @@ fn trace_path<L: Lanes>(
             break;
         }
     }
+    if let Some(s) = shadow {
+        if !scene.tlas.occluded_with(lanes, s.origin, s.dir, s.tmax) {
+            indirect += s.contribution;
+        }
+    }
     out.reflected = indirect;
     out
 }
 
+/// A light sample's contribution, to be added unless its shadow ray is blocked.
+struct ShadowRay {
+    contribution: Vec3,
+    origin: Vec3,
+    dir: Vec3,
+    tmax: f32,
+}
+
 /// Next-event estimation at a surface point `at` = (position, geometric normal), seen
-/// along `wo` in the shading `frame`: one light sample, shadow-tested (one ray) and
-/// MIS-weighted against the BSDF; `None` when it adds nothing. The contribution still
-/// has to be multiplied by the path throughput.
+/// along `wo` in the shading `frame`: one light sample, MIS-weighted against the BSDF,
+/// and the shadow ray (counted in `rays`) that decides whether it counts; `None` when
+/// it adds nothing. The contribution still has to be multiplied by the path throughput.
 #[inline(always)]
-fn next_event<L: Lanes>(
-    lanes: L,
+fn next_event(
     scene: &RenderScene,
     bsdf: &Bsdf,
     (frame, wo): (&Frame, Vec3),
     (p, ng): (Vec3, Vec3),
     u: [f32; 3],
     rays: &mut u64,
-) -> Option<Vec3> {
+) -> Option<ShadowRay> {
     let ls = scene.lights.sample(p, u)?;
     let (f, bsdf_pdf) = bsdf.eval(wo, frame.to_local(ls.wi));
     if f == Vec3::ZERO || ls.radiance == Vec3::ZERO {
@@ -292,14 +329,12 @@ fn next_event<L: Lanes>(
     let origin = offset(p, ng, ls.wi);
     let tmax = if ls.dist.is_finite() { (ls.dist * (1.0 - 1e-3)).max(0.0) } else { f32::INFINITY };
     *rays += 1;
-    if scene.tlas.occluded_with(lanes, origin, ls.wi, tmax) {
-        return None;
-    }
-    Some(if ls.pdf == 0.0 {
+    let contribution = if ls.pdf == 0.0 {
         f * ls.radiance
     } else {
         f * ls.radiance * (mis(ls.pdf, bsdf_pdf) / ls.pdf)
-    })
+    };
+    Some(ShadowRay { contribution, origin, dir: ls.wi, tmax })
 }
 
 /// Renders the given pixels (index = y*width + x, y = 0 is the top row),

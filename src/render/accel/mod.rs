@@ -92,6 +92,38 @@ mod tests {
         assert!(hits > 300, "too few hits ({hits}) to test anything");
     }
 
+    /// A bounce ray and a shadow ray traced together give what each gives alone, bit
+    /// for bit, with the top level flat only, with one large instance and with several.
+    #[test]
+    fn interleaved_closest_and_shadow_rays_match_separate_ones() {
+        let sphere = Arc::new(Blas::build(Arc::new(shapes::sphere(3))).unwrap());
+        let cube = Arc::new(Blas::build(Arc::new(shapes::cube())).unwrap());
+        let mut rng = 777u64;
+        for large in [0, 1, 3] {
+            let mut instances = Vec::new();
+            for object in 0..6u32 {
+                let blas = if object < large { sphere.clone() } else { cube.clone() };
+                instances.push(Instance::new(blas, random_transform(&mut rng), object, 0));
+            }
+            let tlas = Tlas::build(instances);
+            let ray = |rng: &mut u64| {
+                let o = Vec3::new(lcg(rng) - 0.5, lcg(rng) - 0.5, lcg(rng) - 0.5) * 12.0;
+                let d = ((Vec3::new(lcg(rng), lcg(rng), lcg(rng)) - 0.5) * 6.0 - o).normalize();
+                (o, d, if lcg(rng) < 0.3 { f32::INFINITY } else { lcg(rng) * 15.0 })
+            };
+            let (mut hits, mut blocked) = (0, 0);
+            for _ in 0..1500 {
+                let (a, b) = (ray(&mut rng), ray(&mut rng));
+                let both = tlas.intersect_and_occluded_with(Sse, a, b);
+                let alone = (tlas.intersect(a.0, a.1, a.2), tlas.occluded(b.0, b.1, b.2));
+                assert_eq!(both, alone);
+                hits += usize::from(alone.0.is_some());
+                blocked += usize::from(alone.1);
+            }
+            assert!(hits > 100 && blocked > 100, "too few hits ({hits}, {blocked})");
+        }
+    }
+
     fn random_transform(rng: &mut u64) -> Affine3A {
         let t = Vec3::new(lcg(rng) * 6.0 - 3.0, lcg(rng) * 6.0 - 3.0, lcg(rng) * 6.0 - 3.0);
         let r = Quat::from_euler(glam::EulerRot::XYZ, lcg(rng) * 3.0, lcg(rng), 0.5);

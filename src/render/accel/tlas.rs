@@ -59,7 +59,7 @@ impl Instance {
 }
 
 /// The closest intersection found by [`Tlas::intersect`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     pub t: f32,
     pub instance: u32,
@@ -212,6 +212,54 @@ impl Tlas {
             );
         }
         (best.instance != u32::MAX).then_some(best)
+    }
+
+    /// [`Tlas::intersect_with`] of `closest` and [`Tlas::occluded_with`] of `shadow`
+    /// (origin, direction, tmax each), their traversals interleaved where the scene has
+    /// at most one large instance (see `WideBvh::intersect_and_occluded`); the same
+    /// answers as the two calls.
+    #[inline(always)]
+    pub fn intersect_and_occluded_with<L: Lanes>(
+        &self,
+        lanes: L,
+        closest: (Vec3, Vec3, f32),
+        shadow: (Vec3, Vec3, f32),
+    ) -> (Option<Hit>, bool) {
+        if self.large.len() > 1 {
+            let hit = self.intersect_with(lanes, closest.0, closest.1, closest.2);
+            return (hit, self.occluded_with(lanes, shadow.0, shadow.1, shadow.2));
+        }
+        let (o, d) = (Vec3A::from(closest.0), Vec3A::from(closest.1));
+        let (so, sd) = (Vec3A::from(shadow.0), Vec3A::from(shadow.1));
+        let mut best = Hit { t: closest.2, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
+        let (h, mut blocked) = self.flat.wide.intersect_and_occluded::<L>(
+            (&WideRay::new(o, d), closest.2),
+            (&WideRay::new(so, sd), shadow.2),
+        );
+        if let Some(h) = h {
+            let (instance, prim) = self.flat.owner[h.prim as usize];
+            best = Hit { t: h.t, instance, prim, u: h.u, v: h.v };
+        }
+        if let [only] = self.large[..] {
+            if blocked {
+                self.instance_hit::<L>(only, o, d, &mut best);
+            } else {
+                let inst = &self.instances[only as usize];
+                let to_object = |p: Vec3A, v: Vec3A| {
+                    let m = &inst.world_to_object;
+                    WideRay::new(m.transform_point3a(p), m.transform_vector3a(v))
+                };
+                let (h, b) = inst.blas.wide.intersect_and_occluded::<L>(
+                    (&to_object(o, d), best.t),
+                    (&to_object(so, sd), shadow.2),
+                );
+                if let Some(h) = h {
+                    best = Hit { t: h.t, instance: only, prim: h.prim, u: h.u, v: h.v };
+                }
+                blocked = b;
+            }
+        }
+        ((best.instance != u32::MAX).then_some(best), blocked)
     }
 
     /// Closest hit in instance `index`'s BLAS nearer than `best` (a method, not a closure,

@@ -16,7 +16,10 @@
 //!
 //! Why not across rays: after the first bounce the rays of neighbouring paths diverge,
 //! and a packet of incoherent rays visits the union of their nodes; Embree's own choice
-//! for incoherent rays is one ray against a wide node, which is this.
+//! for incoherent rays is one ray against a wide node, which is this. What a path does
+//! have is two independent rays per vertex, the shadow ray and the next bounce: they are
+//! walked in turns, one node or leaf each (`intersect_and_occluded`), so that on trees
+//! larger than the caches both walks' loads are in flight together.
 //!
 //! Every build gives the same hits bit for bit: the lanes are plain IEEE operations in a
 //! fixed order (Rust neither contracts nor reorders float arithmetic), whatever width the
@@ -580,102 +583,172 @@ impl WideBvh {
     /// The closest triangle the ray hits in (0, tmax).
     #[inline(always)]
     pub(super) fn intersect<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> Option<TriHit> {
-        if self.nodes.is_empty() {
-            return None;
+        let mut walk = ClosestWalk::new(self, tmax);
+        while !walk.done {
+            walk.step::<L>(self, ray);
         }
-        let mut best = TriHit { t: tmax, prim: u32::MAX, u: 0.0, v: 0.0 };
-        let mut stack = Stack::new();
-        let mut current = 0u32;
-        loop {
-            if current & LEAF == 0 {
-                let node = &self.nodes[current as usize];
-                let (mask, tnear) = node.hits::<L>(ray, best.t);
-                if mask != 0 {
-                    let first = mask.trailing_zeros() as usize;
-                    if mask & (mask - 1) == 0 {
-                        current = node.child[first];
-                        continue;
-                    }
-                    // Nearest first: sort the entered children by distance, farthest
-                    // at the bottom (stable, so ties keep child order).
-                    let mut order = [(0u32, 0.0f32); 8];
-                    let mut n = 0;
-                    let mut m = mask;
-                    while m != 0 {
-                        let i = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        let entry = (node.child[i], tnear[i]);
-                        let mut j = n;
-                        while j > 0 && order[j - 1].1 < entry.1 {
-                            order[j] = order[j - 1];
-                            j -= 1;
-                        }
-                        order[j] = entry;
-                        n += 1;
-                    }
-                    for &entry in &order[..n - 1] {
-                        stack.push(entry);
-                    }
-                    current = order[n - 1].0;
-                    continue;
-                }
-            } else {
-                let packet = &self.packets[(current & !LEAF) as usize];
-                let (mut mask, tuv) = packet.hits(ray, best.t);
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    if tuv[0][i] < best.t {
-                        best = TriHit {
-                            t: tuv[0][i],
-                            prim: packet.prim[i],
-                            u: tuv[1][i],
-                            v: tuv[2][i],
-                        };
-                    }
-                }
-            }
-            // Next: the nearest stacked entry not behind the closest hit.
-            loop {
-                let Some((r, t)) = stack.pop() else {
-                    return (best.prim != u32::MAX).then_some(best);
-                };
-                if t < best.t {
-                    current = r;
-                    break;
-                }
-            }
-        }
+        walk.hit()
     }
 
     /// Whether any triangle blocks the ray in (0, tmax).
     #[inline(always)]
     pub(super) fn occluded<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> bool {
-        if self.nodes.is_empty() {
-            return false;
+        let mut walk = AnyWalk::new(self);
+        while !walk.done {
+            walk.step::<L>(self, ray, tmax);
         }
-        let mut stack = Stack::new();
-        let mut current = 0u32;
-        loop {
-            if current & LEAF == 0 {
-                let node = &self.nodes[current as usize];
-                let (mut mask, _) = node.hits::<L>(ray, tmax);
-                if mask != 0 {
-                    current = node.child[mask.trailing_zeros() as usize];
-                    mask &= mask - 1;
-                    while mask != 0 {
-                        stack.push((node.child[mask.trailing_zeros() as usize], 0.0));
-                        mask &= mask - 1;
-                    }
-                    continue;
+        walk.blocked
+    }
+
+    /// [`WideBvh::intersect`] of `closest` and [`WideBvh::occluded`] of `shadow`, the two
+    /// walks advanced in turns, one node or leaf each. A path's bounce ray and shadow ray
+    /// are independent, and on a tree larger than the caches each step waits on a load
+    /// from memory: interleaved, the core has both loads in flight at once. Each walk
+    /// takes the steps it takes alone, so the answers are the same bit for bit.
+    #[inline(always)]
+    pub(super) fn intersect_and_occluded<L: Lanes>(
+        &self,
+        (closest, tmax): (&WideRay, f32),
+        (shadow, shadow_tmax): (&WideRay, f32),
+    ) -> (Option<TriHit>, bool) {
+        let mut a = ClosestWalk::new(self, tmax);
+        let mut b = AnyWalk::new(self);
+        while !a.done && !b.done {
+            a.step::<L>(self, closest);
+            b.step::<L>(self, shadow, shadow_tmax);
+        }
+        while !a.done {
+            a.step::<L>(self, closest);
+        }
+        while !b.done {
+            b.step::<L>(self, shadow, shadow_tmax);
+        }
+        (a.hit(), b.blocked)
+    }
+}
+
+/// A closest-hit traversal in progress: children visited nearest first, stacked entries
+/// behind the closest hit dropped unvisited.
+struct ClosestWalk {
+    best: TriHit,
+    stack: Stack,
+    /// The node or leaf the next step tests.
+    current: u32,
+    done: bool,
+}
+
+impl ClosestWalk {
+    #[inline(always)]
+    fn new(bvh: &WideBvh, tmax: f32) -> Self {
+        let best = TriHit { t: tmax, prim: u32::MAX, u: 0.0, v: 0.0 };
+        Self { best, stack: Stack::new(), current: 0, done: bvh.nodes.is_empty() }
+    }
+
+    #[inline(always)]
+    fn hit(&self) -> Option<TriHit> {
+        (self.best.prim != u32::MAX).then_some(self.best)
+    }
+
+    /// Tests the current node or leaf and moves to the next (or finishes).
+    #[inline(always)]
+    fn step<L: Lanes>(&mut self, bvh: &WideBvh, ray: &WideRay) {
+        let current = self.current;
+        if current & LEAF == 0 {
+            let node = &bvh.nodes[current as usize];
+            let (mask, tnear) = node.hits::<L>(ray, self.best.t);
+            if mask != 0 {
+                let first = mask.trailing_zeros() as usize;
+                if mask & (mask - 1) == 0 {
+                    self.current = node.child[first];
+                    return;
                 }
-            } else if self.packets[(current & !LEAF) as usize].hits(ray, tmax).0 != 0 {
-                return true;
+                // Nearest first: sort the entered children by distance, farthest at
+                // the bottom (stable, so ties keep child order).
+                let mut order = [(0u32, 0.0f32); 8];
+                let mut n = 0;
+                let mut m = mask;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    let entry = (node.child[i], tnear[i]);
+                    let mut j = n;
+                    while j > 0 && order[j - 1].1 < entry.1 {
+                        order[j] = order[j - 1];
+                        j -= 1;
+                    }
+                    order[j] = entry;
+                    n += 1;
+                }
+                for &entry in &order[..n - 1] {
+                    self.stack.push(entry);
+                }
+                self.current = order[n - 1].0;
+                return;
             }
-            match stack.pop() {
-                Some((r, _)) => current = r,
-                None => return false,
+        } else {
+            let packet = &bvh.packets[(current & !LEAF) as usize];
+            let (mut mask, tuv) = packet.hits(ray, self.best.t);
+            while mask != 0 {
+                let i = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if tuv[0][i] < self.best.t {
+                    self.best =
+                        TriHit { t: tuv[0][i], prim: packet.prim[i], u: tuv[1][i], v: tuv[2][i] };
+                }
             }
+        }
+        // Next: the nearest stacked entry not behind the closest hit.
+        loop {
+            let Some((r, t)) = self.stack.pop() else {
+                self.done = true;
+                return;
+            };
+            if t < self.best.t {
+                self.current = r;
+                return;
+            }
+        }
+    }
+}
+
+/// An any-hit traversal in progress: it stops at the first triangle in range.
+struct AnyWalk {
+    stack: Stack,
+    current: u32,
+    blocked: bool,
+    done: bool,
+}
+
+impl AnyWalk {
+    #[inline(always)]
+    fn new(bvh: &WideBvh) -> Self {
+        Self { stack: Stack::new(), current: 0, blocked: false, done: bvh.nodes.is_empty() }
+    }
+
+    /// Tests the current node or leaf and moves to the next (or finishes).
+    #[inline(always)]
+    fn step<L: Lanes>(&mut self, bvh: &WideBvh, ray: &WideRay, tmax: f32) {
+        let current = self.current;
+        if current & LEAF == 0 {
+            let node = &bvh.nodes[current as usize];
+            let (mut mask, _) = node.hits::<L>(ray, tmax);
+            if mask != 0 {
+                self.current = node.child[mask.trailing_zeros() as usize];
+                mask &= mask - 1;
+                while mask != 0 {
+                    self.stack.push((node.child[mask.trailing_zeros() as usize], 0.0));
+                    mask &= mask - 1;
+                }
+                return;
+            }
+        } else if bvh.packets[(current & !LEAF) as usize].hits(ray, tmax).0 != 0 {
+            self.blocked = true;
+            self.done = true;
+            return;
+        }
+        match self.stack.pop() {
+            Some((r, _)) => self.current = r,
+            None => self.done = true,
         }
     }
 }
