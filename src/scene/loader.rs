@@ -1,8 +1,8 @@
 //! Asset data for a scene state: meshes, textures and environment maps, read through an
 //! [`AssetResolver`] (the master's search path or a worker's cache).
 //!
-//! Albedo textures are stored as sRGB and converted to linear on load; environment maps
-//! (Radiance `.hdr`, OpenEXR) are linear already and are only checked.
+//! Albedo textures keep their 8-bit sRGB codes, linearised at lookup (`assets::Texels`);
+//! environment maps (Radiance `.hdr`, OpenEXR) are linear already and are only checked.
 
 use std::sync::Arc;
 

@@ -15,7 +15,7 @@ use obvhs::BvhBuildParams;
 use super::blas::{build_tri_bvh, Blas};
 use super::traverse::{intersect_node, restart};
 use super::triangle::TriEdges;
-use super::wide::{LaneFill, Lanes, Sse, WideBvh, WideRay};
+use super::wide::{LaneFill, Lanes, Sse, TriHit, WideBvh, WideRay};
 
 /// One placed instance of a BLAS.
 #[derive(Clone)]
@@ -41,6 +41,13 @@ impl Instance {
         let world_to_object = object_to_world.inverse();
         let normal_to_world = world_to_object.matrix3.transpose();
         Self { blas, object_to_world, world_to_object, normal_to_world, object, material_base }
+    }
+
+    /// A world-space ray in this instance's object space, ready for its BLAS.
+    #[inline(always)]
+    fn object_ray(&self, origin: Vec3A, dir: Vec3A) -> WideRay {
+        let m = &self.world_to_object;
+        WideRay::new(m.transform_point3a(origin), m.transform_vector3a(dir))
     }
 
     pub(super) fn world_bounds(&self) -> Aabb {
@@ -185,8 +192,7 @@ impl Tlas {
         let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
         if let Some(h) = self.flat.wide.intersect::<L>(&WideRay::new(origin, dir), tmax) {
-            let (instance, prim) = self.flat.owner[h.prim as usize];
-            best = Hit { t: h.t, instance, prim, u: h.u, v: h.v };
+            best = self.flat_hit(h);
         }
         if self.large.is_empty() {
             return (best.instance != u32::MAX).then_some(best);
@@ -237,21 +243,16 @@ impl Tlas {
             (&WideRay::new(so, sd), shadow.2),
         );
         if let Some(h) = h {
-            let (instance, prim) = self.flat.owner[h.prim as usize];
-            best = Hit { t: h.t, instance, prim, u: h.u, v: h.v };
+            best = self.flat_hit(h);
         }
         if let [only] = self.large[..] {
             if blocked {
                 self.instance_hit::<L>(only, o, d, &mut best);
             } else {
                 let inst = &self.instances[only as usize];
-                let to_object = |p: Vec3A, v: Vec3A| {
-                    let m = &inst.world_to_object;
-                    WideRay::new(m.transform_point3a(p), m.transform_vector3a(v))
-                };
                 let (h, b) = inst.blas.wide.intersect_and_occluded::<L>(
-                    (&to_object(o, d), best.t),
-                    (&to_object(so, sd), shadow.2),
+                    (&inst.object_ray(o, d), best.t),
+                    (&inst.object_ray(so, sd), shadow.2),
                 );
                 if let Some(h) = h {
                     best = Hit { t: h.t, instance: only, prim: h.prim, u: h.u, v: h.v };
@@ -262,14 +263,19 @@ impl Tlas {
         ((best.instance != u32::MAX).then_some(best), blocked)
     }
 
+    /// A hit in the flattened small instances, as the instance and triangle it belongs to.
+    #[inline(always)]
+    fn flat_hit(&self, h: TriHit) -> Hit {
+        let (instance, prim) = self.flat.owner[h.prim as usize];
+        Hit { t: h.t, instance, prim, u: h.u, v: h.v }
+    }
+
     /// Closest hit in instance `index`'s BLAS nearer than `best` (a method, not a closure,
     /// so that `inline(always)` carries the AVX node test into the dispatched kernel).
     #[inline(always)]
     fn instance_hit<L: Lanes>(&self, index: u32, origin: Vec3A, dir: Vec3A, best: &mut Hit) {
         let inst = &self.instances[index as usize];
-        let o = inst.world_to_object.transform_point3a(origin);
-        let d = inst.world_to_object.transform_vector3a(dir);
-        if let Some(h) = inst.blas.wide.intersect::<L>(&WideRay::new(o, d), best.t) {
+        if let Some(h) = inst.blas.wide.intersect::<L>(&inst.object_ray(origin, dir), best.t) {
             *best = Hit { t: h.t, instance: index, prim: h.prim, u: h.u, v: h.v };
         }
     }
@@ -278,9 +284,7 @@ impl Tlas {
     #[inline(always)]
     fn instance_blocks<L: Lanes>(&self, index: u32, origin: Vec3A, dir: Vec3A, tmax: f32) -> bool {
         let inst = &self.instances[index as usize];
-        let o = inst.world_to_object.transform_point3a(origin);
-        let d = inst.world_to_object.transform_vector3a(dir);
-        inst.blas.wide.occluded::<L>(&WideRay::new(o, d), tmax)
+        inst.blas.wide.occluded::<L>(&inst.object_ray(origin, dir), tmax)
     }
 
     /// [`Tlas::occluded`] with node tests on `L`'s registers (same answers).
