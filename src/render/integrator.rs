@@ -17,7 +17,7 @@ use super::RenderScene;
 use super::{MaterialData, PixelSample};
 
 /// Paths survive Russian roulette unconditionally up to this many segments.
-const RR_START_DEPTH: u32 = 3;
+pub(super) const RR_START_DEPTH: u32 = 3;
 /// Smallest albedo divided out by demodulation.
 const MIN_ALBEDO: f32 = 1e-3;
 
@@ -47,16 +47,16 @@ enum Hit<'a> {
 }
 
 /// A resolved surface hit in world space.
-struct Surface<'a> {
-    p: Vec3,
+pub(super) struct Surface<'a> {
+    pub(super) p: Vec3,
     /// Unit geometric normal on the triangle's front (winding) side.
-    ng: Vec3,
+    pub(super) ng: Vec3,
     /// Unit shading normal, on the same side as `ng`.
-    ns: Vec3,
+    pub(super) ns: Vec3,
     /// Texture coordinates; zero unless the material is textured.
-    uv: Vec2,
-    material: &'a MaterialData,
-    object: u32,
+    pub(super) uv: Vec2,
+    pub(super) material: &'a MaterialData,
+    pub(super) object: u32,
 }
 
 #[inline(always)]
@@ -150,42 +150,63 @@ fn albedo_of(material: &MaterialData, uv: Vec2) -> Vec3 {
     }
 }
 
+/// What a camera path carries from one vertex to the next (besides its ray).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PathState {
+    pub(super) stream: SampleStream,
+    pub(super) throughput: Vec3,
+    pub(super) indirect: Vec3,
+    pub(super) prev_pdf: f32,
+    /// Whether the previous bounce was a delta choice (the camera ray counts as one).
+    pub(super) prev_delta: bool,
+    /// Segments so far, the one being traced included.
+    pub(super) depth: u32,
+}
+
+impl PathState {
+    /// A path whose camera ray is being traced.
+    #[inline(always)]
+    pub(super) fn start(stream: SampleStream) -> Self {
+        Self {
+            stream,
+            throughput: Vec3::ONE,
+            indirect: Vec3::ZERO,
+            prev_pdf: 0.0,
+            prev_delta: true,
+            depth: 1,
+        }
+    }
+}
+
+/// The G-buffer values of a path before its first vertex.
+pub(super) const EMPTY_SAMPLE: PixelSample = PixelSample {
+    reflected: Vec3::ZERO,
+    emission: Vec3::ZERO,
+    albedo: Vec3::ONE,
+    normal: Vec3::ZERO,
+    position: Vec3::ZERO,
+    object: u32::MAX,
+};
+
 /// One camera path: its reflected radiance and G-buffer values.
 #[inline(always)]
 fn trace_path<L: Lanes>(
     lanes: L,
     scene: &RenderScene,
-    stream: &mut SampleStream,
+    stream: SampleStream,
     pixel_pos: Vec2,
     max_depth: u32,
     strategy: Strategy,
     rays: &mut u64,
 ) -> PixelSample {
     let nee = strategy == Strategy::NeeMis;
-    let lights = &scene.lights;
-    let cam = stream.next4();
-    let (mut o, mut d) =
-        scene.camera.ray(pixel_pos + Vec2::new(cam[0], cam[1]), Vec2::new(cam[2], cam[3]));
-    let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
-    let mut throughput = Vec3::ONE;
-    let mut indirect = Vec3::ZERO;
-    let mut prev_pdf = 0.0f32;
-    let mut prev_delta = true;
-    let mut depth = 1u32;
+    let mut path = PathState::start(stream);
+    let (mut o, mut d) = camera_ray(scene, &mut path.stream, pixel_pos);
+    let mut out = EMPTY_SAMPLE;
     // The last vertex's shadow ray, traced together with the next bounce's ray.
     let mut shadow: Option<ShadowRay> = None;
     loop {
         *rays += 1;
-        // Adds emitted radiance reached by the path, MIS-weighted against light
-        // sampling unless the previous bounce could not have sampled a light.
-        let emit = |radiance: Vec3, light_pdf: f32, indirect: &mut Vec3, out: &mut PixelSample| {
-            if depth == 1 {
-                out.emission += radiance;
-            } else {
-                let w = if prev_delta || !nee { 1.0 } else { mis(prev_pdf, light_pdf) };
-                *indirect += throughput * radiance * w;
-            }
-        };
         let hit = match shadow.take() {
             Some(s) => {
                 let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
@@ -194,118 +215,170 @@ fn trace_path<L: Lanes>(
                     (s.origin, s.dir, s.tmax),
                 );
                 if !blocked {
-                    indirect += s.contribution;
+                    path.indirect += s.contribution;
                 }
                 hit
             }
             None => scene.tlas.intersect_with(lanes, o, d, f32::INFINITY),
         };
-        let surface = match resolve(scene, o, d, hit) {
-            None => {
-                for (radiance, pdf) in lights.escaped(d) {
-                    if radiance != Vec3::ZERO {
-                        emit(radiance, pdf, &mut indirect, &mut out);
-                    }
-                }
-                break;
-            }
-            Some(Hit::Light(q, t)) => {
-                let cos = -d.dot(q.normal);
-                if cos > 0.0 {
-                    emit(
-                        q.radiance,
-                        lights.area_pdf(q.radiance, t * t, cos),
-                        &mut indirect,
-                        &mut out,
-                    );
-                }
-                if depth == 1 {
-                    out.normal = q.normal;
-                    out.position = o + d * t;
-                }
-                break;
-            }
-            Some(Hit::Surface(s)) => s,
-        };
-        let material = surface.material;
-        let wo_world = -d;
-        if material.is_emissive() {
-            let cos = wo_world.dot(surface.ng);
-            if cos > 0.0 {
-                let dist2 = (surface.p - o).length_squared();
-                let pdf = lights.area_pdf(material.emission, dist2, cos);
-                emit(material.emission, pdf, &mut indirect, &mut out);
-            }
-        }
-        let albedo = albedo_of(material, surface.uv);
-        if depth == 1 {
-            out.albedo = albedo.max(Vec3::splat(MIN_ALBEDO));
-            out.normal = surface.ns;
-            out.position = surface.p;
-            out.object = surface.object;
-        }
-        if depth >= max_depth {
-            break;
-        }
-        let bsdf = Bsdf::new(material.kind, albedo, material.roughness, material.ior);
-        let (mut ng, mut ns) = (surface.ng, surface.ns);
-        if bsdf.two_sided() && ng.dot(wo_world) < 0.0 {
-            ng = -ng;
-            ns = -ns;
-        }
-        let mut frame = Frame::new(ns);
-        let mut wo = frame.to_local(wo_world);
-        if bsdf.two_sided() && wo.z <= 0.0 {
-            // The shading normal faces away from the viewer: fall back to geometry.
-            frame = Frame::new(ng);
-            wo = frame.to_local(wo_world);
-        }
-
-        // Next-event estimation; its random numbers are drawn either way, so that the
-        // stream's indices do not depend on the strategy or the material.
-        let u_light = stream.next4();
-        if nee && !bsdf.is_delta() {
-            let u = [u_light[0], u_light[1], u_light[2]];
-            shadow = next_event(scene, &bsdf, (&frame, wo), (surface.p, ng), u, rays)
-                .map(|s| ShadowRay { contribution: throughput * s.contribution, ..s });
-        }
-
-        // Continue the path by sampling the BSDF.
-        let u = stream.next4();
-        let Some(sample) = bsdf.sample(wo, [u[0], u[1], u[2]]) else { break };
-        let wi = frame.to_world(sample.wi);
-        throughput *= sample.weight;
-        prev_pdf = sample.pdf;
-        prev_delta = sample.delta;
-        o = offset(surface.p, ng, wi);
-        d = wi;
-        depth += 1;
-        if depth > RR_START_DEPTH {
-            let q = throughput.max_element().min(0.95);
-            if u[3] >= q {
-                break;
-            }
-            throughput /= q;
-        }
-        if throughput == Vec3::ZERO {
+        let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, nee, &mut out);
+        let Some((surface, albedo)) = arrived else { break };
+        let (alive, s) = scatter(scene, &mut path, (&mut o, &mut d), &surface, albedo, nee, rays);
+        shadow = s;
+        if !alive {
             break;
         }
     }
     if let Some(s) = shadow {
         if !scene.tlas.occluded_with(lanes, s.origin, s.dir, s.tmax) {
-            indirect += s.contribution;
+            path.indirect += s.contribution;
         }
     }
-    out.reflected = indirect;
+    out.reflected = path.indirect;
     out
 }
 
+/// A path's camera ray through `pixel_pos`, from its sample stream's first draw.
+#[inline(always)]
+pub(super) fn camera_ray(
+    scene: &RenderScene,
+    stream: &mut SampleStream,
+    pixel_pos: Vec2,
+) -> (Vec3, Vec3) {
+    let cam = stream.next4();
+    scene.camera.ray(pixel_pos + Vec2::new(cam[0], cam[1]), Vec2::new(cam[2], cam[3]))
+}
+
+/// What the ray `(o, d)` found (`hit`, the geometry's closest): adds the emission it
+/// reached, MIS-weighted against light sampling unless the previous bounce could not have
+/// sampled a light, and records the G-buffer at the first vertex. Returns the surface and
+/// its albedo where the path scatters on; `None` when it ends.
+#[inline(always)]
+pub(super) fn arrive<'a>(
+    scene: &'a RenderScene,
+    path: &mut PathState,
+    (o, d): (Vec3, Vec3),
+    hit: Option<super::accel::Hit>,
+    max_depth: u32,
+    nee: bool,
+    out: &mut PixelSample,
+) -> Option<(Surface<'a>, Vec3)> {
+    let lights = &scene.lights;
+    let emit = |radiance: Vec3, light_pdf: f32, path: &mut PathState, out: &mut PixelSample| {
+        if path.depth == 1 {
+            out.emission += radiance;
+        } else {
+            let w = if path.prev_delta || !nee { 1.0 } else { mis(path.prev_pdf, light_pdf) };
+            path.indirect += path.throughput * radiance * w;
+        }
+    };
+    let surface = match resolve(scene, o, d, hit) {
+        None => {
+            for (radiance, pdf) in lights.escaped(d) {
+                if radiance != Vec3::ZERO {
+                    emit(radiance, pdf, path, out);
+                }
+            }
+            return None;
+        }
+        Some(Hit::Light(q, t)) => {
+            let cos = -d.dot(q.normal);
+            if cos > 0.0 {
+                emit(q.radiance, lights.area_pdf(q.radiance, t * t, cos), path, out);
+            }
+            if path.depth == 1 {
+                out.normal = q.normal;
+                out.position = o + d * t;
+            }
+            return None;
+        }
+        Some(Hit::Surface(s)) => s,
+    };
+    let material = surface.material;
+    if material.is_emissive() {
+        let cos = (-d).dot(surface.ng);
+        if cos > 0.0 {
+            let dist2 = (surface.p - o).length_squared();
+            let pdf = lights.area_pdf(material.emission, dist2, cos);
+            emit(material.emission, pdf, path, out);
+        }
+    }
+    let albedo = albedo_of(material, surface.uv);
+    if path.depth == 1 {
+        out.albedo = albedo.max(Vec3::splat(MIN_ALBEDO));
+        out.normal = surface.ns;
+        out.position = surface.p;
+        out.object = surface.object;
+    }
+    (path.depth < max_depth).then_some((surface, albedo))
+}
+
+/// Next-event estimation (its shadow ray returned, to be traced) and BSDF sampling at
+/// `surface`, reached along `d`: moves the ray `(o, d)` on and says whether the path
+/// lives.
+#[inline(always)]
+pub(super) fn scatter(
+    scene: &RenderScene,
+    path: &mut PathState,
+    (o, d): (&mut Vec3, &mut Vec3),
+    surface: &Surface,
+    albedo: Vec3,
+    nee: bool,
+    rays: &mut u64,
+) -> (bool, Option<ShadowRay>) {
+    let material = surface.material;
+    let wo_world = -*d;
+    let bsdf = Bsdf::new(material.kind, albedo, material.roughness, material.ior);
+    let (mut ng, mut ns) = (surface.ng, surface.ns);
+    if bsdf.two_sided() && ng.dot(wo_world) < 0.0 {
+        ng = -ng;
+        ns = -ns;
+    }
+    let mut frame = Frame::new(ns);
+    let mut wo = frame.to_local(wo_world);
+    if bsdf.two_sided() && wo.z <= 0.0 {
+        // The shading normal faces away from the viewer: fall back to geometry.
+        frame = Frame::new(ng);
+        wo = frame.to_local(wo_world);
+    }
+
+    // Next-event estimation; its random numbers are drawn either way, so that the
+    // stream's indices do not depend on the strategy or the material.
+    let u_light = path.stream.next4();
+    let mut shadow = None;
+    if nee && !bsdf.is_delta() {
+        let u = [u_light[0], u_light[1], u_light[2]];
+        shadow = next_event(scene, &bsdf, (&frame, wo), (surface.p, ng), u, rays)
+            .map(|s| ShadowRay { contribution: path.throughput * s.contribution, ..s });
+    }
+
+    // Continue the path by sampling the BSDF.
+    let u = path.stream.next4();
+    let Some(sample) = bsdf.sample(wo, [u[0], u[1], u[2]]) else { return (false, shadow) };
+    let wi = frame.to_world(sample.wi);
+    path.throughput *= sample.weight;
+    path.prev_pdf = sample.pdf;
+    path.prev_delta = sample.delta;
+    *o = offset(surface.p, ng, wi);
+    *d = wi;
+    path.depth += 1;
+    if path.depth > RR_START_DEPTH {
+        let q = path.throughput.max_element().min(0.95);
+        if u[3] >= q {
+            return (false, shadow);
+        }
+        path.throughput /= q;
+    }
+    (path.throughput != Vec3::ZERO, shadow)
+}
+
 /// A light sample's contribution, to be added unless its shadow ray is blocked.
-struct ShadowRay {
-    contribution: Vec3,
-    origin: Vec3,
-    dir: Vec3,
-    tmax: f32,
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ShadowRay {
+    pub(super) contribution: Vec3,
+    pub(super) origin: Vec3,
+    pub(super) dir: Vec3,
+    pub(super) tmax: f32,
 }
 
 /// Next-event estimation at a surface point `at` = (position, geometric normal), seen
@@ -427,16 +500,20 @@ fn render_pixels_kernel<L: Lanes>(
     let width = state.resolution.width.max(1);
     let spp = state.render.spp.max(1);
     let inv = 1.0 / spp as f32;
+    if L::AVX {
+        // Only the v3 build has an `Avx` token, and the stream kernel needs AVX2.
+        return super::stream::render(lanes, scene, frame, pixels, out, strategy);
+    }
     let mut stats = RenderStats::default();
     for &pixel in pixels {
         let pos = Vec2::new((pixel % width) as f32, (pixel / width) as f32);
         let mut acc = PixelSample::default();
         for index in 0..spp {
-            let mut stream = SampleStream::new(state.seed, frame, pixel, index);
+            let stream = SampleStream::new(state.seed, frame, pixel, index);
             let s = trace_path(
                 lanes,
                 scene,
-                &mut stream,
+                stream,
                 pos,
                 state.render.max_depth,
                 strategy,

@@ -170,7 +170,7 @@ impl Lights {
         if !self.areas.is_empty() {
             if k == 0 {
                 // Reuse the strategy's share of u[0] to pick the emitter.
-                let ua = (u[0] * self.strategies as f32 - pick as f32).clamp(0.0, 0.999_999);
+                let ua = self.area_u(u[0], pick);
                 return self.sample_area(p, ua, u2);
             }
             k -= 1;
@@ -196,11 +196,30 @@ impl Lights {
         })
     }
 
+    /// Whether every light sample is an area emitter's (one strategy): the case the
+    /// stream kernel's vector stage handles.
+    #[inline]
+    pub(crate) fn area_only(&self) -> bool {
+        self.strategies == 1 && !self.areas.is_empty()
+    }
+
+    /// The area emitter light sampling picks with `u` (by power).
+    #[inline(always)]
+    pub(crate) fn pick_area(&self, u: f32) -> usize {
+        let target = u * self.area_power;
+        self.area_cdf.partition_point(|&c| c <= target).min(self.areas.len() - 1)
+    }
+
+    /// `u[0]` of a light sample as the area emitters' strategy reuses it (`pick` = 0
+    /// where the scene has area emitters only).
+    #[inline(always)]
+    pub(crate) fn area_u(&self, u0: f32, pick: u32) -> f32 {
+        (u0 * self.strategies as f32 - pick as f32).clamp(0.0, 0.999_999)
+    }
+
     #[inline(always)]
     fn sample_area(&self, p: Vec3, u: f32, u2: Vec2) -> Option<LightSample> {
-        let target = u * self.area_power;
-        let i = self.area_cdf.partition_point(|&c| c <= target).min(self.areas.len() - 1);
-        let a = &self.areas[i];
+        let a = &self.areas[self.pick_area(u)];
         let (s, t) = if a.parallelogram {
             (u2.x, u2.y)
         } else {

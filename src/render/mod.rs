@@ -18,9 +18,11 @@ pub mod camera;
 pub mod envmap;
 pub mod gpu;
 pub mod integrator;
+pub mod lanes;
 pub mod lights;
 pub mod microfacet;
 pub mod sampler;
+mod stream;
 pub mod testscenes;
 pub mod trig;
 

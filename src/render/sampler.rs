@@ -9,6 +9,8 @@
 //! Independent draws ("padding") give an unbounded number of dimensions while each
 //! 4-D group keeps its low discrepancy.
 
+use super::lanes::{F8, U8};
+
 /// Number of bits in a Sobol direction vector.
 const BITS: usize = 32;
 
@@ -154,10 +156,11 @@ pub fn sobol_tables() -> &'static [[[u32; 256]; 4]; 3] {
 /// dimension groups of sample `index` of a pixel.
 #[derive(Clone, Copy, Debug)]
 pub struct SampleStream {
-    pixel_seed: u32,
+    pub(crate) pixel_seed: u32,
     /// The sample index, bit-reversed once for every draw's index shuffle.
-    index_reversed: u32,
-    draw: u32,
+    pub(crate) index_reversed: u32,
+    /// Draws taken so far.
+    pub(crate) draw: u32,
 }
 
 impl SampleStream {
@@ -189,6 +192,53 @@ impl SampleStream {
             to_unit(owen_scramble_reversed(sobol_reversed(i, 2), mix32(seed ^ 0x2c1b_3c6d))),
         ]
     }
+}
+
+/// [`SampleStream::next4`] of eight streams at once, each at its own draw: the same
+/// integer steps lane by lane (so the same values), for the stream kernel.
+#[inline(always)]
+pub(crate) fn next4_lanes(pixel_seed: U8, index_reversed: U8, draw: U8) -> [F8; 4] {
+    // Functions, not closures: a closure called several times may be outlined, and
+    // outside the v3 build's function its lane intrinsics would not inline.
+    #[inline(always)]
+    fn mix(x: U8) -> U8 {
+        let x = x ^ (x >> 16);
+        let x = x.wrapping_mul(U8::splat(0x7feb_352d));
+        let x = x ^ (x >> 15);
+        let x = x.wrapping_mul(U8::splat(0x846c_a68b));
+        x ^ (x >> 16)
+    }
+    #[inline(always)]
+    fn owen(mut x: U8, seed: U8) -> U8 {
+        x = x ^ x.wrapping_mul(U8::splat(0x3d20_adea));
+        x = x.wrapping_add(seed);
+        x = x.wrapping_mul((seed >> 16) | U8::splat(1));
+        x = x ^ x.wrapping_mul(U8::splat(0x0552_6c56));
+        x = x ^ x.wrapping_mul(U8::splat(0x53a2_2864));
+        x.reverse_bits()
+    }
+    #[inline(always)]
+    fn unit(x: U8) -> F8 {
+        (x >> 8).to_f32() * F8::splat(1.0 / 16_777_216.0)
+    }
+    #[inline(always)]
+    fn sobol(i: U8, dim: usize) -> U8 {
+        let t = &TABLES[dim];
+        let byte = U8::splat(0xff);
+        U8::gather(&t[0], i & byte)
+            ^ U8::gather(&t[1], (i >> 8) & byte)
+            ^ U8::gather(&t[2], (i >> 16) & byte)
+            ^ U8::gather(&t[3], i >> 24)
+    }
+    let seed =
+        mix(pixel_seed ^ mix(draw.wrapping_mul(U8::splat(0x9e37_79b9)) ^ U8::splat(0x68e3_1da4)));
+    let i = owen(index_reversed, seed);
+    [
+        unit(owen(i, mix(seed ^ U8::splat(0xa511_e9b3)))),
+        unit(owen(sobol(i, 0), mix(seed ^ U8::splat(0x63d8_3595)))),
+        unit(owen(sobol(i, 1), mix(seed ^ U8::splat(0x9e1f_4a13)))),
+        unit(owen(sobol(i, 2), mix(seed ^ U8::splat(0x2c1b_3c6d)))),
+    ]
 }
 
 #[cfg(test)]
@@ -249,6 +299,26 @@ mod tests {
                 ]
                 .map(to_unit);
                 assert_eq!(stream.next4(), expected, "pixel {pixel} index {index} draw {draw}");
+            }
+        }
+    }
+
+    #[test]
+    fn eight_lanes_draw_what_eight_streams_draw() {
+        let mut streams: [SampleStream; WIDTH] =
+            std::array::from_fn(|l| SampleStream::new(9, 4, 100 + l as u32 * 37, l as u32 * 3));
+        for l in 0..WIDTH {
+            for _ in 0..l {
+                streams[l].next4();
+            }
+        }
+        let lanes = |f: fn(&SampleStream) -> u32| U8(std::array::from_fn(|l| f(&streams[l])));
+        let got =
+            next4_lanes(lanes(|s| s.pixel_seed), lanes(|s| s.index_reversed), lanes(|s| s.draw));
+        for (l, s) in streams.iter_mut().enumerate() {
+            let want = s.next4();
+            for k in 0..4 {
+                assert_eq!(got[k].0[l].to_bits(), want[k].to_bits(), "lane {l} dimension {k}");
             }
         }
     }

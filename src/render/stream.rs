@@ -1,0 +1,485 @@
+//! The stream kernel: eight camera paths advance side by side, their state held lane by
+//! lane (structure of arrays), and the shading of their diffuse vertices runs as
+//! eight-lane AVX2 code.
+//!
+//! Three designs were on the table. pbrt-v4's wavefront integrator keeps millions of
+//! paths in per-stage queues (camera rays, closest hit, per-material shading, shadow
+//! rays), which suits a GPU's thread count but makes a CPU core stream every path's state
+//! through memory at every stage. Embree's ray streams trace many rays per call, but after
+//! the first bounce the rays of neighbouring paths diverge and a packet of incoherent rays
+//! visits the union of their nodes, which is why Embree's own answer for incoherent rays
+//! is one ray against a wide node (our [`super::accel`] traversal). Mitsuba's LLVM
+//! variant is a megakernel: one wide loop over paths whose every operation is a vector
+//! operation with masks. This kernel is that megakernel's shape at the width of one AVX
+//! register, with refill: eight lanes, each holding one path; a lane whose path ends
+//! takes the next (pixel, sample) of the job at once, so lanes stay busy until the job's
+//! tail. Per bounce, each lane's ray (and the shadow ray its last vertex left) is traced
+//! on its own and the hit is resolved per lane (materials and textures are
+//! data-dependent, [`super::integrator::arrive`]); then every lane at a diffuse vertex of
+//! a scene lit by area emitters goes through one vector stage: both 4-D sample draws, the
+//! light sample, the BSDF's value, MIS, the shadow ray's set-up, cosine sampling, the
+//! throughput update and Russian roulette. Other vertices (glossy, glass, conductor;
+//! point lights, the sun and environments) take the one-path step
+//! ([`super::integrator::scatter`]) in their lane.
+//!
+//! An earlier version kept each lane's state as a scalar struct and gathered it into
+//! vectors per stage: the gathers cost what the vector stage saved (parity on the Cornell
+//! box). Here the state stays in lanes, and the lane types are AVX registers
+//! ([`super::lanes`]), so the kernel runs in the x86-64-v3 build only; the baseline
+//! build traces one path at a time with the same steps.
+//!
+//! The pictures are the one-path kernel's, bit for bit: every lane computes the scalar
+//! code's operations in its order, each path keeps its own sample stream, and the samples
+//! of a pixel are summed in sample order whatever order they finish in.
+
+use glam::{Vec2, Vec3};
+use gridlight_actors::state::MaterialKind;
+
+use super::accel::Lanes;
+use super::integrator::{
+    arrive, camera_ray, scatter, PathState, RenderStats, ShadowRay, Strategy, Surface,
+    EMPTY_SAMPLE, RR_START_DEPTH,
+};
+use super::lanes::{Mask, F8, U8, V8, WIDTH};
+use super::sampler::{next4_lanes, SampleStream};
+use super::trig::sin_cos_lanes;
+use super::{PixelSample, RenderScene};
+
+/// Pixels whose samples all finish before the next pixels start: bounds the per-sample
+/// buffer, at the cost of a ragged tail of lanes per chunk.
+const CHUNK: usize = 256;
+
+/// Eight paths in flight, lane by lane.
+#[derive(Default)]
+struct Group {
+    o: V8,
+    d: V8,
+    throughput: V8,
+    indirect: V8,
+    prev_pdf: F8,
+    depth: U8,
+    /// The sample streams' fields ([`SampleStream`]).
+    seed: U8,
+    index: U8,
+    draw: U8,
+    /// Lanes whose previous bounce was a delta choice (camera rays count as one).
+    prev_delta: u32,
+    /// The diffuse vertex each lane of the vector stage scatters at: position, geometric
+    /// and shading normals (front side), albedo.
+    p: V8,
+    ng: V8,
+    ns: V8,
+    color: V8,
+    /// Pending shadow rays (lanes in `shadow`), traced with the lane's next ray.
+    sh_o: V8,
+    sh_d: V8,
+    sh_tmax: F8,
+    sh_c: V8,
+    shadow: u32,
+    /// Job (pixel × spp + sample) and G-buffer values of each lane's path.
+    job: [usize; WIDTH],
+    out: [PixelSample; WIDTH],
+}
+
+impl Group {
+    /// Lane `l`'s path state.
+    #[inline(always)]
+    fn path(&self, l: usize) -> PathState {
+        PathState {
+            stream: SampleStream {
+                pixel_seed: self.seed.0[l],
+                index_reversed: self.index.0[l],
+                draw: self.draw.0[l],
+            },
+            throughput: self.throughput.lane(l),
+            indirect: self.indirect.lane(l),
+            prev_pdf: self.prev_pdf.0[l],
+            prev_delta: self.prev_delta & (1 << l) != 0,
+            depth: self.depth.0[l],
+        }
+    }
+
+    /// Stores `path` as lane `l`'s state.
+    #[inline(always)]
+    fn set_path(&mut self, l: usize, path: &PathState) {
+        self.seed.0[l] = path.stream.pixel_seed;
+        self.index.0[l] = path.stream.index_reversed;
+        self.draw.0[l] = path.stream.draw;
+        self.throughput.set_lane(l, path.throughput);
+        self.indirect.set_lane(l, path.indirect);
+        self.prev_pdf.0[l] = path.prev_pdf;
+        self.prev_delta = (self.prev_delta & !(1 << l)) | (u32::from(path.prev_delta) << l);
+        self.depth.0[l] = path.depth;
+    }
+
+    /// Makes `s` lane `l`'s pending shadow ray.
+    #[inline(always)]
+    fn set_shadow(&mut self, l: usize, s: &ShadowRay) {
+        self.sh_o.set_lane(l, s.origin);
+        self.sh_d.set_lane(l, s.dir);
+        self.sh_tmax.0[l] = s.tmax;
+        self.sh_c.set_lane(l, s.contribution);
+        self.shadow |= 1 << l;
+    }
+
+    /// Lane `l`'s pending shadow ray, if any (no longer pending).
+    #[inline(always)]
+    fn take_shadow(&mut self, l: usize) -> Option<ShadowRay> {
+        if self.shadow & (1 << l) == 0 {
+            return None;
+        }
+        self.shadow &= !(1 << l);
+        Some(ShadowRay {
+            contribution: self.sh_c.lane(l),
+            origin: self.sh_o.lane(l),
+            dir: self.sh_d.lane(l),
+            tmax: self.sh_tmax.0[l],
+        })
+    }
+}
+
+/// Path-traces `pixels` as [`super::integrator::render_pixels_counted`] specifies.
+#[inline(always)]
+pub(super) fn render<L: Lanes>(
+    lanes: L,
+    scene: &RenderScene,
+    frame: u64,
+    pixels: &[u32],
+    out: &mut Vec<PixelSample>,
+    strategy: Strategy,
+) -> RenderStats {
+    out.clear();
+    out.resize(pixels.len(), PixelSample::default());
+    let state = scene.state();
+    let width = state.resolution.width.max(1);
+    let spp = state.render.spp.max(1) as usize;
+    let inv = 1.0 / spp as f32;
+    let max_depth = state.render.max_depth;
+    let nee = strategy == Strategy::NeeMis;
+    let vector = nee && scene.lights.area_only();
+    let mut stats = RenderStats::default();
+    // (reflected, emission) of each sample of the chunk, by (pixel, sample index).
+    let mut sums = Vec::with_capacity(CHUNK * spp);
+    let mut g = Group::default();
+    for (c, chunk) in pixels.chunks(CHUNK).enumerate() {
+        let gbuffer = &mut out[c * CHUNK..c * CHUNK + chunk.len()];
+        sums.clear();
+        sums.resize(chunk.len() * spp, (Vec3::ZERO, Vec3::ZERO));
+        let jobs = chunk.len() * spp;
+        let mut next = 0;
+        // Lanes holding a path; idle lanes keep stale values, computed on and ignored.
+        let mut active = 0u32;
+        // Ends lane `l`'s path: its last shadow ray, then its sample's sums.
+        let mut finish = |g: &mut Group, l: usize| {
+            if let Some(s) = g.take_shadow(l) {
+                if !scene.tlas.occluded_with(lanes, s.origin, s.dir, s.tmax) {
+                    let indirect = g.indirect.lane(l) + s.contribution;
+                    g.indirect.set_lane(l, indirect);
+                }
+            }
+            let s = &g.out[l];
+            let job = g.job[l];
+            sums[job] = (g.indirect.lane(l), s.emission);
+            if job % spp == 0 {
+                let b = &mut gbuffer[job / spp];
+                (b.albedo, b.normal, b.position, b.object) =
+                    (s.albedo, s.normal, s.position, s.object);
+            }
+        };
+        loop {
+            while active != (1 << WIDTH) - 1 && next < jobs {
+                let l = (!active).trailing_zeros() as usize;
+                let pixel = chunk[next / spp];
+                let pos = Vec2::new((pixel % width) as f32, (pixel / width) as f32);
+                let mut path = PathState::start(SampleStream::new(
+                    state.seed,
+                    frame,
+                    pixel,
+                    (next % spp) as u32,
+                ));
+                let (o, d) = camera_ray(scene, &mut path.stream, pos);
+                g.set_path(l, &path);
+                g.o.set_lane(l, o);
+                g.d.set_lane(l, d);
+                g.job[l] = next;
+                g.out[l] = EMPTY_SAMPLE;
+                active |= 1 << l;
+                next += 1;
+            }
+            if active == 0 {
+                break;
+            }
+            let mut group = 0u32;
+            let mut left = active;
+            while left != 0 {
+                let l = left.trailing_zeros() as usize;
+                left &= left - 1;
+                let alive =
+                    match arrive_lane(lanes, scene, &mut g, l, max_depth, nee, &mut stats.rays) {
+                        None => false,
+                        Some((surface, albedo))
+                            if vector && surface.material.kind == MaterialKind::Diffuse =>
+                        {
+                            g.p.set_lane(l, surface.p);
+                            g.ng.set_lane(l, surface.ng);
+                            g.ns.set_lane(l, surface.ns);
+                            g.color.set_lane(l, albedo);
+                            group |= 1 << l;
+                            true
+                        }
+                        Some((surface, albedo)) => {
+                            scatter_lane(scene, &mut g, l, &surface, albedo, nee, &mut stats.rays)
+                        }
+                    };
+                if !alive {
+                    finish(&mut g, l);
+                    active &= !(1 << l);
+                }
+            }
+            if group != 0 {
+                let mut ended = scatter_diffuse(scene, &mut g, group, &mut stats.rays);
+                active &= !ended;
+                while ended != 0 {
+                    let l = ended.trailing_zeros() as usize;
+                    ended &= ended - 1;
+                    finish(&mut g, l);
+                }
+            }
+        }
+        for (b, samples) in gbuffer.iter_mut().zip(sums.chunks(spp)) {
+            let (mut reflected, mut emission) = (Vec3::ZERO, Vec3::ZERO);
+            for &(r, e) in samples {
+                reflected += r;
+                emission += e;
+            }
+            b.reflected = reflected * inv;
+            b.emission = emission * inv;
+        }
+    }
+    stats.samples = pixels.len() as u64 * spp as u64;
+    stats
+}
+
+/// Traces lane `l`'s ray together with its pending shadow ray, then
+/// [`super::integrator::arrive`]s: the surface where the path scatters on, if any.
+#[inline(always)]
+fn arrive_lane<'a, L: Lanes>(
+    lanes: L,
+    scene: &'a RenderScene,
+    g: &mut Group,
+    l: usize,
+    max_depth: u32,
+    nee: bool,
+    rays: &mut u64,
+) -> Option<(Surface<'a>, Vec3)> {
+    let (o, d) = (g.o.lane(l), g.d.lane(l));
+    *rays += 1;
+    let mut path = g.path(l);
+    let hit = match g.take_shadow(l) {
+        Some(s) => {
+            let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
+                lanes,
+                (o, d, f32::INFINITY),
+                (s.origin, s.dir, s.tmax),
+            );
+            if !blocked {
+                path.indirect += s.contribution;
+            }
+            hit
+        }
+        None => scene.tlas.intersect_with(lanes, o, d, f32::INFINITY),
+    };
+    let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, nee, &mut g.out[l]);
+    g.indirect.set_lane(l, path.indirect);
+    arrived
+}
+
+/// [`super::integrator::scatter`] in lane `l` (a vertex the vector stage does not
+/// handle): false when the path ends.
+#[inline(always)]
+fn scatter_lane(
+    scene: &RenderScene,
+    g: &mut Group,
+    l: usize,
+    surface: &Surface,
+    albedo: Vec3,
+    nee: bool,
+    rays: &mut u64,
+) -> bool {
+    let mut path = g.path(l);
+    let (mut o, mut d) = (g.o.lane(l), g.d.lane(l));
+    let (alive, shadow) = scatter(scene, &mut path, (&mut o, &mut d), surface, albedo, nee, rays);
+    g.set_path(l, &path);
+    g.o.set_lane(l, o);
+    g.d.set_lane(l, d);
+    if let Some(s) = shadow {
+        g.set_shadow(l, &s);
+    }
+    alive
+}
+
+/// [`super::microfacet::Frame`] of eight normals: tangents `s`, `t`.
+#[inline(always)]
+fn frame(n: V8) -> (V8, V8) {
+    let one = F8::splat(1.0);
+    let sign = F8::from_bits(one.to_bits() | (n.z.to_bits() & U8::splat(0x8000_0000)));
+    let a = -one / (sign + n.z);
+    let b = n.x * n.y * a;
+    let s = V8 { x: one + sign * n.x * n.x * a, y: sign * b, z: -sign * n.x };
+    let t = V8 { x: b, y: sign + n.y * n.y * a, z: -n.y };
+    (s, t)
+}
+
+/// [`super::integrator::offset`] in lanes.
+#[inline(always)]
+fn offset(p: V8, ng: V8, dir: V8) -> V8 {
+    let eps = F8::splat(1e-4) * (F8::splat(1.0) + p.abs().max_element());
+    V8::select(ng.dot(dir).ge(F8::splat(0.0)), p + ng.scale(eps), p - ng.scale(eps))
+}
+
+/// [`super::microfacet::cosine_hemisphere`] in lanes.
+#[inline(always)]
+fn cosine_hemisphere(u1: F8, u2: F8) -> V8 {
+    use std::f32::consts::PI;
+    let (one, zero) = (F8::splat(1.0), F8::splat(0.0));
+    let (ax, ay) = (F8::splat(2.0) * u1 - one, F8::splat(2.0) * u2 - one);
+    let centre = ax.eq(zero) & ay.eq(zero);
+    let x_major = ax.abs().gt(ay.abs());
+    let r = F8::select(x_major, ax, ay);
+    let phi = F8::select(
+        x_major,
+        F8::splat(PI / 4.0) * (ay / ax),
+        F8::splat(PI / 2.0) - F8::splat(PI / 4.0) * (ax / ay),
+    );
+    let (s, c) = sin_cos_lanes(phi);
+    let (x, y) = (r * c, r * s);
+    let z = (one - x * x - y * y).max(zero).sqrt();
+    V8::select(centre, V8 { x: zero, y: zero, z: one }, V8 { x, y, z })
+}
+
+/// Power heuristic with β = 2 in lanes.
+#[inline(always)]
+fn mis8(a: F8, b: F8) -> F8 {
+    let (a2, b2) = (a * a, b * b);
+    let zero = F8::splat(0.0);
+    F8::select((a2 + b2).gt(zero), a2 / (a2 + b2), zero)
+}
+
+/// Next-event estimation and cosine-weighted continuation of the `group` lanes, all at
+/// diffuse vertices of a scene lit by area emitters only; returns the lanes whose paths
+/// ended (their pending shadow rays still to be traced).
+#[inline(always)]
+fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u64) -> u32 {
+    use std::f32::consts::FRAC_1_PI;
+    let lights = &scene.lights;
+    let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+    let gm = U8::from_bitmask(group);
+
+    let u_light = next4_lanes(g.seed, g.index, g.draw);
+    let u = next4_lanes(g.seed, g.index, g.draw.wrapping_add(U8::splat(1)));
+
+    // Two-sided: flip the normals to the viewer's side, then the shading frame (the
+    // geometric one where the shading normal faces away).
+    let wo_world = -g.d;
+    let flip = g.ng.dot(wo_world).lt(zero);
+    let ng = V8::select(flip, -g.ng, g.ng);
+    let ns = V8::select(flip, -g.ns, g.ns);
+    let (s1, t1) = frame(ns);
+    let wo1 = V8 { x: wo_world.dot(s1), y: wo_world.dot(t1), z: wo_world.dot(ns) };
+    let (s2, t2) = frame(ng);
+    let wo2 = V8 { x: wo_world.dot(s2), y: wo_world.dot(t2), z: wo_world.dot(ng) };
+    let geo = wo1.z.le(zero);
+    let fs = V8::select(geo, s2, s1);
+    let ft = V8::select(geo, t2, t1);
+    let fn_ = V8::select(geo, ng, ns);
+    let wo = V8::select(geo, wo2, wo1);
+    let p = g.p;
+    let color = g.color;
+
+    // Light sample: an area emitter by power, then a point on it.
+    let mut v0 = V8::default();
+    let mut e1 = V8::default();
+    let mut e2 = V8::default();
+    let mut normal = V8::default();
+    let mut radiance = V8::default();
+    let mut parallelogram = U8::default();
+    for l in 0..WIDTH {
+        let a = &lights.areas[lights.pick_area(lights.area_u(u_light[0].0[l], 0))];
+        v0.set_lane(l, a.v0);
+        e1.set_lane(l, a.e1);
+        e2.set_lane(l, a.e2);
+        normal.set_lane(l, a.normal);
+        radiance.set_lane(l, a.radiance);
+        parallelogram.0[l] = if a.parallelogram { u32::MAX } else { 0 };
+    }
+    let r = u_light[1].sqrt();
+    let s = F8::select(parallelogram, u_light[1], one - r);
+    let t = F8::select(parallelogram, u_light[2], u_light[2] * r);
+    let q = v0 + e1.scale(s) + e2.scale(t);
+    let d = q - p;
+    let dist2 = d.dot(d);
+    let dist = dist2.sqrt();
+    let wi = d.div(dist);
+    let cos_light = -wi.dot(normal);
+    let sampled = !(cos_light.le(zero) | dist2.eq(zero));
+    let per_area = (radiance.x + radiance.y + radiance.z) / F8::splat(lights.area_power);
+    let light_pdf = F8::splat(lights.strategy_pmf) * per_area * dist2 / cos_light;
+
+    // The diffuse BSDF's value and pdf there.
+    let wl = V8 { x: wi.dot(fs), y: wi.dot(ft), z: wi.dot(fn_) };
+    let above = !(wl.z.le(zero) | wo.z.le(zero));
+    let cos_pi = wl.z * F8::splat(FRAC_1_PI);
+    let f = V8::select(above, color.scale(cos_pi), V8::default());
+    let bsdf_pdf = F8::select(above, cos_pi, zero);
+    let lit = gm & sampled & !(f.eq(V8::default()) | radiance.eq(V8::default()));
+
+    let origin = offset(p, ng, wi);
+    let tmax = F8::select(
+        dist.abs().lt(F8::splat(f32::INFINITY)),
+        (dist * F8::splat(1.0 - 1e-3)).max(zero),
+        F8::splat(f32::INFINITY),
+    );
+    let fl = f * radiance;
+    let c = V8::select(light_pdf.eq(zero), fl, fl.scale(mis8(light_pdf, bsdf_pdf) / light_pdf));
+    let mut throughput = g.throughput;
+    g.sh_o = V8::select(lit, origin, g.sh_o);
+    g.sh_d = V8::select(lit, wi, g.sh_d);
+    g.sh_tmax = F8::select(lit, tmax, g.sh_tmax);
+    g.sh_c = V8::select(lit, throughput * c, g.sh_c);
+    let lit = lit.bitmask();
+    g.shadow |= lit;
+    *rays += lit.count_ones() as u64;
+
+    // Cosine-weighted continuation, then Russian roulette.
+    let alive = !wo.z.le(zero);
+    let wi = cosine_hemisphere(u[1], u[2]);
+    let pdf = wi.z * F8::splat(FRAC_1_PI);
+    let dir = fs.scale(wi.x) + ft.scale(wi.y) + fn_.scale(wi.z);
+    throughput = throughput * color;
+    let o = offset(p, ng, dir);
+    let depth = g.depth.wrapping_add(U8::splat(1));
+    let roulette = depth.map(|d| if d > RR_START_DEPTH { u32::MAX } else { 0 });
+    let rq = throughput.max_element().min(F8::splat(0.95));
+    let killed = roulette & u[3].ge(rq);
+    throughput = V8::select(roulette, throughput.div(rq), throughput);
+    let live: Mask = alive & !killed & !throughput.eq(V8::default());
+
+    g.draw = V8sel::u(gm, g.draw.wrapping_add(U8::splat(2)), g.draw);
+    g.throughput = V8::select(gm, throughput, g.throughput);
+    g.prev_pdf = F8::select(gm, pdf, g.prev_pdf);
+    g.prev_delta &= !group;
+    g.o = V8::select(gm, o, g.o);
+    g.d = V8::select(gm, dir, g.d);
+    g.depth = V8sel::u(gm, depth, g.depth);
+    group & !live.bitmask()
+}
+
+/// Lane selects of `u32` values.
+struct V8sel;
+
+impl V8sel {
+    #[inline(always)]
+    fn u(mask: Mask, a: U8, b: U8) -> U8 {
+        (a & mask) | (b & !mask)
+    }
+}
