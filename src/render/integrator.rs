@@ -500,8 +500,8 @@ fn render_pixels_kernel<L: Lanes>(
     let width = state.resolution.width.max(1);
     let spp = state.render.spp.max(1);
     let inv = 1.0 / spp as f32;
-    if L::AVX {
-        // Only the v3 build has an `Avx` token, and the stream kernel needs AVX2.
+    // Only the v3 build has an `Avx` token, and the stream kernel needs AVX2.
+    if L::AVX && super::stream::vectorises(scene, strategy) {
         return super::stream::render(lanes, scene, frame, pixels, out, strategy);
     }
     let mut stats = RenderStats::default();
@@ -671,7 +671,11 @@ mod tests {
             (MaterialKind::Dielectric, 0.4, false),
             (MaterialKind::Diffuse, 1.0, true),
         ];
-        for (kind, roughness, textured) in kinds {
+        // Lit by the box's area light alone, diffuse vertices take the stream kernel's
+        // vector stage (the others their lane's one-path step); with an environment too,
+        // every vertex takes the one-path step.
+        let cases = kinds.into_iter().flat_map(|k| [(k, true), (k, false)]);
+        for ((kind, roughness, textured), environment) in cases {
             let (assets, mut state) = testscenes::cornell_box(40, 30);
             state.materials[0].kind = kind;
             state.materials[0].roughness = roughness;
@@ -683,13 +687,14 @@ mod tests {
                 state.materials[0].base_color_texture = Some("checker.png".into());
             }
             let assets = std::sync::Arc::new(assets);
-            state.environment = Some(gridlight_actors::state::Environment {
+            state.environment = environment.then_some(gridlight_actors::state::Environment {
                 color: Vec3::new(0.3, 0.4, 0.5),
                 intensity: 1.0,
                 map: None,
                 rotation_deg: 0.0,
             });
             let scene = RenderScene::new(assets, &state).unwrap();
+            assert_eq!(scene.lights.area_only(), !environment);
             let pixels: Vec<u32> = (0..40 * 30).collect();
             let (mut base, mut wide) = (Vec::new(), Vec::new());
             let a = render_pixels_kernel(Sse, &scene, 3, &pixels, &mut base, Strategy::NeeMis);

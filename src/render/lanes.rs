@@ -208,29 +208,29 @@ impl F8 {
         F8::from_bits(self.to_bits() & U8::splat(0x7fff_ffff))
     }
 
-    /// [`f32::max`] per lane (the non-NaN side wins).
+    /// [`f32::max`] per lane (the non-NaN side wins), as LLVM lowers it on x86:
+    /// `maxps(o, self)` (which returns `self` on ties of ±0 and where either is NaN),
+    /// then `o` where `self` is NaN.
     #[inline(always)]
     pub fn max(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
         return avx!({
-            // maxps returns its second operand when either is NaN: a NaN in `o` is
-            // replaced by `self`.
             let (x, y) = (reg::f(self), reg::f(o));
-            let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(y, y);
-            reg::fo(_mm256_blendv_ps(_mm256_max_ps(x, y), x, nan))
+            let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
+            reg::fo(_mm256_blendv_ps(_mm256_max_ps(y, x), y, nan))
         });
         #[cfg(not(target_arch = "x86_64"))]
         self.zip(o, f32::max)
     }
 
-    /// [`f32::min`] per lane (the non-NaN side wins).
+    /// [`f32::min`] per lane, as [`F8::max`].
     #[inline(always)]
     pub fn min(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
         return avx!({
             let (x, y) = (reg::f(self), reg::f(o));
-            let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(y, y);
-            reg::fo(_mm256_blendv_ps(_mm256_min_ps(x, y), x, nan))
+            let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
+            reg::fo(_mm256_blendv_ps(_mm256_min_ps(y, x), y, nan))
         });
         #[cfg(not(target_arch = "x86_64"))]
         self.zip(o, f32::min)
@@ -454,7 +454,7 @@ impl V8 {
     }
 
     #[inline(always)]
-    pub fn div(self, s: F8) -> Self {
+    pub fn div_by(self, s: F8) -> Self {
         Self { x: self.x / s, y: self.y / s, z: self.z / s }
     }
 
@@ -522,19 +522,37 @@ impl Neg for V8 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// Whether this CPU runs the lane types (AVX2), reporting a skip where not.
+    pub(crate) fn runnable(test: &str) -> bool {
+        if crate::render::integrator::v3::available() {
+            return true;
+        }
+        let why = "the lane types are AVX2 registers";
+        crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
+        false
+    }
 
     #[test]
     fn lanes_give_the_scalar_bits() {
+        if !runnable("lanes_give_the_scalar_bits") {
+            return;
+        }
         let a = F8([0.5, -1.25, 3.0, f32::NAN, 0.0, -0.0, 1e-30, 7.5]);
         let b = F8([2.0, 4.0, -3.0, 1.0, f32::NAN, 0.0, 3.0, -7.5]);
+        for (a, b) in [(a, b), (b, a)] {
+            for i in 0..WIDTH {
+                let (x, y) = (a.0[i], b.0[i]);
+                let (max, min) = (a.max(b).0[i].to_bits(), a.min(b).0[i].to_bits());
+                assert_eq!((max, min), (x.max(y).to_bits(), x.min(y).to_bits()), "{x} {y}");
+            }
+        }
         for i in 0..WIDTH {
             let (x, y) = (a.0[i], b.0[i]);
             assert_eq!((a + b).0[i].to_bits(), (x + y).to_bits());
             assert_eq!((a / b).0[i].to_bits(), (x / y).to_bits());
-            assert_eq!(a.max(b).0[i].to_bits(), x.max(y).to_bits());
-            assert_eq!(a.min(b).0[i].to_bits(), x.min(y).to_bits());
             assert_eq!(a.lt(b).0[i] != 0, x < y);
             let sel = F8::select(a.ge(b), a, b).0[i];
             assert_eq!(sel.to_bits(), if x >= y { x } else { y }.to_bits());
@@ -548,5 +566,27 @@ mod tests {
         let m = U8::from_bitmask(0b1010_0110);
         assert_eq!(m.bitmask(), 0b1010_0110);
         assert_eq!(U8::splat(0x0000_0001).reverse_bits(), U8::splat(0x8000_0000));
+        let x = U8([0, 1, 0x8000_0000, 0xdead_beef, 0x1234_5678, u32::MAX, 7, 0x0f0f_00f1]);
+        let y = U8([3, 0x9e37_79b9, 2, 0x7feb_352d, 0xffff_fffe, 5, 0x8000_0001, 11]);
+        let table: [u32; 256] =
+            std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) ^ 0x55);
+        let (rev, mul, add) = (x.reverse_bits(), x.wrapping_mul(y), x.wrapping_add(y));
+        let (shr, shl, gather) = (x >> 8, x << 3, U8::gather(&table, x & U8::splat(0xff)));
+        let unit = (x >> 8).to_f32();
+        for i in 0..WIDTH {
+            let (a, b) = (x.0[i], y.0[i]);
+            assert_eq!(rev.0[i], a.reverse_bits(), "lane {i}");
+            assert_eq!(mul.0[i], a.wrapping_mul(b), "lane {i}");
+            assert_eq!(add.0[i], a.wrapping_add(b), "lane {i}");
+            assert_eq!((shr.0[i], shl.0[i]), (a >> 8, a << 3), "lane {i}");
+            assert_eq!(gather.0[i], table[(a & 0xff) as usize], "lane {i}");
+            assert_eq!(unit.0[i].to_bits(), ((a >> 8) as f32).to_bits(), "lane {i}");
+        }
+        let t = F8([0.4, -0.6, 2.9, -3.5, 1e6, -0.0, 7.0, -1e-3]);
+        let k = t.trunc_i32();
+        for i in 0..WIDTH {
+            assert_eq!(k.0[i] as i32, t.0[i] as i32, "lane {i}");
+            assert_eq!(F8::from_i32(k).0[i], (t.0[i] as i32) as f32, "lane {i}");
+        }
     }
 }

@@ -15,12 +15,14 @@
 //! takes the next (pixel, sample) of the job at once, so lanes stay busy until the job's
 //! tail. Per bounce, each lane's ray (and the shadow ray its last vertex left) is traced
 //! on its own and the hit is resolved per lane (materials and textures are
-//! data-dependent, [`super::integrator::arrive`]); then every lane at a diffuse vertex of
-//! a scene lit by area emitters goes through one vector stage: both 4-D sample draws, the
-//! light sample, the BSDF's value, MIS, the shadow ray's set-up, cosine sampling, the
-//! throughput update and Russian roulette. Other vertices (glossy, glass, conductor;
-//! point lights, the sun and environments) take the one-path step
-//! ([`super::integrator::scatter`]) in their lane.
+//! data-dependent, [`super::integrator::arrive`], shared with the one-path kernel); then
+//! every lane goes through one vector stage: both 4-D sample draws, the light sample, the
+//! diffuse BSDF's value, MIS, the shadow ray's set-up, cosine sampling, the throughput
+//! update and Russian roulette. It renders the scenes whose every vertex can take that
+//! stage ([`vectorises`]: diffuse materials, area emitters); a version that sent glossy,
+//! glass and metal vertices, and scenes lit by the sun or the sky, through the one-path
+//! step in their lane measured slower than the one-path kernel on those scenes, so they
+//! keep it.
 //!
 //! An earlier version kept each lane's state as a scalar struct and gathered it into
 //! vectors per stage: the gathers cost what the vector stage saved (parity on the Cornell
@@ -37,8 +39,8 @@ use gridlight_actors::state::MaterialKind;
 
 use super::accel::Lanes;
 use super::integrator::{
-    arrive, camera_ray, scatter, PathState, RenderStats, ShadowRay, Strategy, Surface,
-    EMPTY_SAMPLE, RR_START_DEPTH,
+    arrive, camera_ray, PathState, RenderStats, ShadowRay, Strategy, Surface, EMPTY_SAMPLE,
+    RR_START_DEPTH,
 };
 use super::lanes::{Mask, F8, U8, V8, WIDTH};
 use super::sampler::{next4_lanes, SampleStream};
@@ -112,16 +114,6 @@ impl Group {
         self.depth.0[l] = path.depth;
     }
 
-    /// Makes `s` lane `l`'s pending shadow ray.
-    #[inline(always)]
-    fn set_shadow(&mut self, l: usize, s: &ShadowRay) {
-        self.sh_o.set_lane(l, s.origin);
-        self.sh_d.set_lane(l, s.dir);
-        self.sh_tmax.0[l] = s.tmax;
-        self.sh_c.set_lane(l, s.contribution);
-        self.shadow |= 1 << l;
-    }
-
     /// Lane `l`'s pending shadow ray, if any (no longer pending).
     #[inline(always)]
     fn take_shadow(&mut self, l: usize) -> Option<ShadowRay> {
@@ -136,6 +128,18 @@ impl Group {
             tmax: self.sh_tmax.0[l],
         })
     }
+}
+
+/// Whether this kernel is the faster one for `scene`: every vertex diffuse and every
+/// light an area emitter, with next-event estimation, so that every vertex takes the
+/// vector stage. Where some lanes take the one-path step, moving their state in and out
+/// of lanes costs more than the vector stage saves on the others (bunny: a glossy bunny
+/// in the Cornell box, 0.93×; Sponza, lit by the sun and the sky: 0.82×), so the
+/// one-path kernel renders those scenes.
+pub(super) fn vectorises(scene: &RenderScene, strategy: Strategy) -> bool {
+    strategy == Strategy::NeeMis
+        && scene.lights.area_only()
+        && scene.materials.iter().all(|m| m.kind == MaterialKind::Diffuse)
 }
 
 /// Path-traces `pixels` as [`super::integrator::render_pixels_counted`] specifies.
@@ -155,8 +159,7 @@ pub(super) fn render<L: Lanes>(
     let spp = state.render.spp.max(1) as usize;
     let inv = 1.0 / spp as f32;
     let max_depth = state.render.max_depth;
-    let nee = strategy == Strategy::NeeMis;
-    let vector = nee && scene.lights.area_only();
+    debug_assert!(vectorises(scene, strategy));
     let mut stats = RenderStats::default();
     // (reflected, emission) of each sample of the chunk, by (pixel, sample index).
     let mut sums = Vec::with_capacity(CHUNK * spp);
@@ -180,7 +183,7 @@ pub(super) fn render<L: Lanes>(
             let s = &g.out[l];
             let job = g.job[l];
             sums[job] = (g.indirect.lane(l), s.emission);
-            if job % spp == 0 {
+            if job.is_multiple_of(spp) {
                 let b = &mut gbuffer[job / spp];
                 (b.albedo, b.normal, b.position, b.object) =
                     (s.albedo, s.normal, s.position, s.object);
@@ -214,23 +217,19 @@ pub(super) fn render<L: Lanes>(
             while left != 0 {
                 let l = left.trailing_zeros() as usize;
                 left &= left - 1;
-                let alive =
-                    match arrive_lane(lanes, scene, &mut g, l, max_depth, nee, &mut stats.rays) {
-                        None => false,
-                        Some((surface, albedo))
-                            if vector && surface.material.kind == MaterialKind::Diffuse =>
-                        {
-                            g.p.set_lane(l, surface.p);
-                            g.ng.set_lane(l, surface.ng);
-                            g.ns.set_lane(l, surface.ns);
-                            g.color.set_lane(l, albedo);
-                            group |= 1 << l;
-                            true
-                        }
-                        Some((surface, albedo)) => {
-                            scatter_lane(scene, &mut g, l, &surface, albedo, nee, &mut stats.rays)
-                        }
-                    };
+                // `vectorises` admits diffuse vertices only.
+                let arrived = arrive_lane(lanes, scene, &mut g, l, max_depth, &mut stats.rays);
+                let alive = match arrived {
+                    None => false,
+                    Some((surface, albedo)) => {
+                        g.p.set_lane(l, surface.p);
+                        g.ng.set_lane(l, surface.ng);
+                        g.ns.set_lane(l, surface.ns);
+                        g.color.set_lane(l, albedo);
+                        group |= 1 << l;
+                        true
+                    }
+                };
                 if !alive {
                     finish(&mut g, l);
                     active &= !(1 << l);
@@ -269,7 +268,6 @@ fn arrive_lane<'a, L: Lanes>(
     g: &mut Group,
     l: usize,
     max_depth: u32,
-    nee: bool,
     rays: &mut u64,
 ) -> Option<(Surface<'a>, Vec3)> {
     let (o, d) = (g.o.lane(l), g.d.lane(l));
@@ -289,33 +287,9 @@ fn arrive_lane<'a, L: Lanes>(
         }
         None => scene.tlas.intersect_with(lanes, o, d, f32::INFINITY),
     };
-    let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, nee, &mut g.out[l]);
+    let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, true, &mut g.out[l]);
     g.indirect.set_lane(l, path.indirect);
     arrived
-}
-
-/// [`super::integrator::scatter`] in lane `l` (a vertex the vector stage does not
-/// handle): false when the path ends.
-#[inline(always)]
-fn scatter_lane(
-    scene: &RenderScene,
-    g: &mut Group,
-    l: usize,
-    surface: &Surface,
-    albedo: Vec3,
-    nee: bool,
-    rays: &mut u64,
-) -> bool {
-    let mut path = g.path(l);
-    let (mut o, mut d) = (g.o.lane(l), g.d.lane(l));
-    let (alive, shadow) = scatter(scene, &mut path, (&mut o, &mut d), surface, albedo, nee, rays);
-    g.set_path(l, &path);
-    g.o.set_lane(l, o);
-    g.d.set_lane(l, d);
-    if let Some(s) = shadow {
-        g.set_shadow(l, &s);
-    }
-    alive
 }
 
 /// [`super::microfacet::Frame`] of eight normals: tangents `s`, `t`.
@@ -419,7 +393,7 @@ fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u6
     let d = q - p;
     let dist2 = d.dot(d);
     let dist = dist2.sqrt();
-    let wi = d.div(dist);
+    let wi = d.div_by(dist);
     let cos_light = -wi.dot(normal);
     let sampled = !(cos_light.le(zero) | dist2.eq(zero));
     let per_area = (radiance.x + radiance.y + radiance.z) / F8::splat(lights.area_power);
@@ -461,7 +435,7 @@ fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u6
     let roulette = depth.map(|d| if d > RR_START_DEPTH { u32::MAX } else { 0 });
     let rq = throughput.max_element().min(F8::splat(0.95));
     let killed = roulette & u[3].ge(rq);
-    throughput = V8::select(roulette, throughput.div(rq), throughput);
+    throughput = V8::select(roulette, throughput.div_by(rq), throughput);
     let live: Mask = alive & !killed & !throughput.eq(V8::default());
 
     g.draw = V8sel::u(gm, g.draw.wrapping_add(U8::splat(2)), g.draw);
