@@ -207,20 +207,7 @@ fn trace_path<L: Lanes>(
     let mut shadow: Option<ShadowRay> = None;
     loop {
         *rays += 1;
-        let hit = match shadow.take() {
-            Some(s) => {
-                let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
-                    lanes,
-                    (o, d, f32::INFINITY),
-                    (s.origin, s.dir, s.tmax),
-                );
-                if !blocked {
-                    path.indirect += s.contribution;
-                }
-                hit
-            }
-            None => scene.tlas.intersect_with(lanes, o, d, f32::INFINITY),
-        };
+        let hit = trace(lanes, scene, (o, d), shadow.take(), &mut path.indirect);
         let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, nee, &mut out);
         let Some((surface, albedo)) = arrived else { break };
         let (alive, s) = scatter(scene, &mut path, (&mut o, &mut d), &surface, albedo, nee, rays);
@@ -230,12 +217,32 @@ fn trace_path<L: Lanes>(
         }
     }
     if let Some(s) = shadow {
-        if !scene.tlas.occluded_with(lanes, s.origin, s.dir, s.tmax) {
-            path.indirect += s.contribution;
-        }
+        s.settle(lanes, scene, &mut path.indirect);
     }
     out.reflected = path.indirect;
     out
+}
+
+/// The closest hit of the ray `(o, d)`; a pending `shadow` ray is traced together with it
+/// (the two walks in turns) and its contribution added to `indirect` unless blocked.
+#[inline(always)]
+pub(super) fn trace<L: Lanes>(
+    lanes: L,
+    scene: &RenderScene,
+    (o, d): (Vec3, Vec3),
+    shadow: Option<ShadowRay>,
+    indirect: &mut Vec3,
+) -> Option<super::accel::Hit> {
+    let Some(s) = shadow else { return scene.tlas.intersect_with(lanes, o, d, f32::INFINITY) };
+    let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
+        lanes,
+        (o, d, f32::INFINITY),
+        (s.origin, s.dir, s.tmax),
+    );
+    if !blocked {
+        *indirect += s.contribution;
+    }
+    hit
 }
 
 /// A path's camera ray through `pixel_pos`, from its sample stream's first draw.
@@ -379,6 +386,17 @@ pub(super) struct ShadowRay {
     pub(super) origin: Vec3,
     pub(super) dir: Vec3,
     pub(super) tmax: f32,
+}
+
+impl ShadowRay {
+    /// Traces this shadow ray alone (its path has no next ray to go with): adds its
+    /// contribution to `indirect` unless blocked.
+    #[inline(always)]
+    pub(super) fn settle<L: Lanes>(&self, lanes: L, scene: &RenderScene, indirect: &mut Vec3) {
+        if !scene.tlas.occluded_with(lanes, self.origin, self.dir, self.tmax) {
+            *indirect += self.contribution;
+        }
+    }
 }
 
 /// Next-event estimation at a surface point `at` = (position, geometric normal), seen

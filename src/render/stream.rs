@@ -39,7 +39,7 @@ use gridlight_actors::state::MaterialKind;
 
 use super::accel::Lanes;
 use super::integrator::{
-    arrive, camera_ray, PathState, RenderStats, ShadowRay, Strategy, Surface, EMPTY_SAMPLE,
+    arrive, camera_ray, trace, PathState, RenderStats, ShadowRay, Strategy, Surface, EMPTY_SAMPLE,
     RR_START_DEPTH,
 };
 use super::lanes::{Mask, F8, U8, V8, WIDTH};
@@ -175,10 +175,9 @@ pub(super) fn render<L: Lanes>(
         // Ends lane `l`'s path: its last shadow ray, then its sample's sums.
         let mut finish = |g: &mut Group, l: usize| {
             if let Some(s) = g.take_shadow(l) {
-                if !scene.tlas.occluded_with(lanes, s.origin, s.dir, s.tmax) {
-                    let indirect = g.indirect.lane(l) + s.contribution;
-                    g.indirect.set_lane(l, indirect);
-                }
+                let mut indirect = g.indirect.lane(l);
+                s.settle(lanes, scene, &mut indirect);
+                g.indirect.set_lane(l, indirect);
             }
             let s = &g.out[l];
             let job = g.job[l];
@@ -273,20 +272,7 @@ fn arrive_lane<'a, L: Lanes>(
     let (o, d) = (g.o.lane(l), g.d.lane(l));
     *rays += 1;
     let mut path = g.path(l);
-    let hit = match g.take_shadow(l) {
-        Some(s) => {
-            let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
-                lanes,
-                (o, d, f32::INFINITY),
-                (s.origin, s.dir, s.tmax),
-            );
-            if !blocked {
-                path.indirect += s.contribution;
-            }
-            hit
-        }
-        None => scene.tlas.intersect_with(lanes, o, d, f32::INFINITY),
-    };
+    let hit = trace(lanes, scene, (o, d), g.take_shadow(l), &mut path.indirect);
     let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, true, &mut g.out[l]);
     g.indirect.set_lane(l, path.indirect);
     arrived
@@ -432,28 +418,18 @@ fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u6
     throughput = throughput * color;
     let o = offset(p, ng, dir);
     let depth = g.depth.wrapping_add(U8::splat(1));
-    let roulette = depth.map(|d| if d > RR_START_DEPTH { u32::MAX } else { 0 });
+    let roulette = depth.gt_i32(U8::splat(RR_START_DEPTH));
     let rq = throughput.max_element().min(F8::splat(0.95));
     let killed = roulette & u[3].ge(rq);
     throughput = V8::select(roulette, throughput.div_by(rq), throughput);
     let live: Mask = alive & !killed & !throughput.eq(V8::default());
 
-    g.draw = V8sel::u(gm, g.draw.wrapping_add(U8::splat(2)), g.draw);
+    g.draw = U8::select(gm, g.draw.wrapping_add(U8::splat(2)), g.draw);
     g.throughput = V8::select(gm, throughput, g.throughput);
     g.prev_pdf = F8::select(gm, pdf, g.prev_pdf);
     g.prev_delta &= !group;
     g.o = V8::select(gm, o, g.o);
     g.d = V8::select(gm, dir, g.d);
-    g.depth = V8sel::u(gm, depth, g.depth);
+    g.depth = U8::select(gm, depth, g.depth);
     group & !live.bitmask()
-}
-
-/// Lane selects of `u32` values.
-struct V8sel;
-
-impl V8sel {
-    #[inline(always)]
-    fn u(mask: Mask, a: U8, b: U8) -> U8 {
-        (a & mask) | (b & !mask)
-    }
 }
