@@ -172,22 +172,6 @@ pub(super) fn render<L: Lanes>(
         let mut next = 0;
         // Lanes holding a path; idle lanes keep stale values, computed on and ignored.
         let mut active = 0u32;
-        // Ends lane `l`'s path: its last shadow ray, then its sample's sums.
-        let mut finish = |g: &mut Group, l: usize| {
-            if let Some(s) = g.take_shadow(l) {
-                let mut indirect = g.indirect.lane(l);
-                s.settle(lanes, scene, &mut indirect);
-                g.indirect.set_lane(l, indirect);
-            }
-            let s = &g.out[l];
-            let job = g.job[l];
-            sums[job] = (g.indirect.lane(l), s.emission);
-            if job.is_multiple_of(spp) {
-                let b = &mut gbuffer[job / spp];
-                (b.albedo, b.normal, b.position, b.object) =
-                    (s.albedo, s.normal, s.position, s.object);
-            }
-        };
         loop {
             while active != (1 << WIDTH) - 1 && next < jobs {
                 let l = (!active).trailing_zeros() as usize;
@@ -230,7 +214,7 @@ pub(super) fn render<L: Lanes>(
                     }
                 };
                 if !alive {
-                    finish(&mut g, l);
+                    finish(lanes, scene, &mut g, l, &mut sums, gbuffer, spp);
                     active &= !(1 << l);
                 }
             }
@@ -240,7 +224,7 @@ pub(super) fn render<L: Lanes>(
                 while ended != 0 {
                     let l = ended.trailing_zeros() as usize;
                     ended &= ended - 1;
-                    finish(&mut g, l);
+                    finish(lanes, scene, &mut g, l, &mut sums, gbuffer, spp);
                 }
             }
         }
@@ -256,6 +240,34 @@ pub(super) fn render<L: Lanes>(
     }
     stats.samples = pixels.len() as u64 * spp as u64;
     stats
+}
+
+/// Ends lane `l`'s path: its last shadow ray, then its sample's sums (and, for a pixel's
+/// first sample, its G-buffer entry). A function, not a closure: called from two places,
+/// a closure was left out of line, without the v3 build's features, and the AVX node
+/// tests of its shadow ray became calls.
+#[inline(always)]
+fn finish<L: Lanes>(
+    lanes: L,
+    scene: &RenderScene,
+    g: &mut Group,
+    l: usize,
+    sums: &mut [(Vec3, Vec3)],
+    gbuffer: &mut [PixelSample],
+    spp: usize,
+) {
+    if let Some(s) = g.take_shadow(l) {
+        let mut indirect = g.indirect.lane(l);
+        s.settle(lanes, scene, &mut indirect);
+        g.indirect.set_lane(l, indirect);
+    }
+    let s = &g.out[l];
+    let job = g.job[l];
+    sums[job] = (g.indirect.lane(l), s.emission);
+    if job.is_multiple_of(spp) {
+        let b = &mut gbuffer[job / spp];
+        (b.albedo, b.normal, b.position, b.object) = (s.albedo, s.normal, s.position, s.object);
+    }
 }
 
 /// Traces lane `l`'s ray together with its pending shadow ray, then
