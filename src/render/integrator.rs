@@ -519,7 +519,7 @@ fn render_pixels_kernel<L: Lanes>(
     let spp = state.render.spp.max(1);
     let inv = 1.0 / spp as f32;
     // Only the v3 build has an `Avx` token, and the stream kernel needs AVX2.
-    if L::AVX && super::stream::vectorises(scene, strategy) {
+    if L::AVX {
         return super::stream::render(lanes, scene, frame, pixels, out, strategy);
     }
     let mut stats = RenderStats::default();

@@ -1,6 +1,6 @@
 //! The stream kernel: eight camera paths advance side by side, their state held lane by
 //! lane (structure of arrays), and the shading of their diffuse vertices runs as
-//! eight-lane AVX2 code.
+//! eight-lane AVX2 code. It is the x86-64-v3 build's kernel for every scene.
 //!
 //! Three designs were on the table. pbrt-v4's wavefront integrator keeps millions of
 //! paths in per-stage queues (camera rays, closest hit, per-material shading, shadow
@@ -18,11 +18,14 @@
 //! data-dependent, [`super::integrator::arrive`], shared with the one-path kernel); then
 //! every lane goes through one vector stage: both 4-D sample draws, the light sample, the
 //! diffuse BSDF's value, MIS, the shadow ray's set-up, cosine sampling, the throughput
-//! update and Russian roulette. It renders the scenes whose every vertex can take that
-//! stage ([`vectorises`]: diffuse materials, area emitters); a version that sent glossy,
-//! glass and metal vertices, and scenes lit by the sun or the sky, through the one-path
-//! step in their lane measured slower than the one-path kernel on those scenes, so they
-//! keep it.
+//! update and Russian roulette. That stage takes diffuse vertices of scenes lit by area
+//! emitters with next-event estimation; other vertices (glossy, glass, conductor; point
+//! lights, the sun and environments; the BSDF-only strategy) take the one-path step
+//! ([`super::integrator::scatter`]) in their lane. Such scenes run as fast as with the
+//! one-path kernel or a little faster (medians of 5 on an Intel Xeon: bunny 1.13×, Sponza
+//! 1.00×; of 7 on an AMD EPYC: 1.03×, 0.96×, within that VM's spread), so one kernel
+//! serves every scene. An earlier measurement that had them slower (0.93×, 0.82×) was of
+//! a build whose end-of-path step was a closure compiled out of line, without AVX.
 //!
 //! An earlier version kept each lane's state as a scalar struct and gathered it into
 //! vectors per stage: the gathers cost what the vector stage saved (parity on the Cornell
@@ -39,8 +42,8 @@ use gridlight_actors::state::MaterialKind;
 
 use super::accel::Lanes;
 use super::integrator::{
-    arrive, camera_ray, trace, PathState, RenderStats, ShadowRay, Strategy, Surface, EMPTY_SAMPLE,
-    RR_START_DEPTH,
+    arrive, camera_ray, scatter, trace, PathState, RenderStats, ShadowRay, Strategy, Surface,
+    EMPTY_SAMPLE, RR_START_DEPTH,
 };
 use super::lanes::{Mask, F8, U8, V8, WIDTH};
 use super::sampler::{next4_lanes, SampleStream};
@@ -114,6 +117,16 @@ impl Group {
         self.depth.0[l] = path.depth;
     }
 
+    /// Makes `s` lane `l`'s pending shadow ray.
+    #[inline(always)]
+    fn set_shadow(&mut self, l: usize, s: &ShadowRay) {
+        self.sh_o.set_lane(l, s.origin);
+        self.sh_d.set_lane(l, s.dir);
+        self.sh_tmax.0[l] = s.tmax;
+        self.sh_c.set_lane(l, s.contribution);
+        self.shadow |= 1 << l;
+    }
+
     /// Lane `l`'s pending shadow ray, if any (no longer pending).
     #[inline(always)]
     fn take_shadow(&mut self, l: usize) -> Option<ShadowRay> {
@@ -128,18 +141,6 @@ impl Group {
             tmax: self.sh_tmax.0[l],
         })
     }
-}
-
-/// Whether this kernel is the faster one for `scene`: every vertex diffuse and every
-/// light an area emitter, with next-event estimation, so that every vertex takes the
-/// vector stage. Where some lanes take the one-path step, moving their state in and out
-/// of lanes costs more than the vector stage saves on the others (bunny: a glossy bunny
-/// in the Cornell box, 0.93×; Sponza, lit by the sun and the sky: 0.82×), so the
-/// one-path kernel renders those scenes.
-pub(super) fn vectorises(scene: &RenderScene, strategy: Strategy) -> bool {
-    strategy == Strategy::NeeMis
-        && scene.lights.area_only()
-        && scene.materials.iter().all(|m| m.kind == MaterialKind::Diffuse)
 }
 
 /// Path-traces `pixels` as [`super::integrator::render_pixels_counted`] specifies.
@@ -159,7 +160,9 @@ pub(super) fn render<L: Lanes>(
     let spp = state.render.spp.max(1) as usize;
     let inv = 1.0 / spp as f32;
     let max_depth = state.render.max_depth;
-    debug_assert!(vectorises(scene, strategy));
+    let nee = strategy == Strategy::NeeMis;
+    // Whether diffuse vertices take the vector stage (it samples area emitters only).
+    let vector = nee && scene.lights.area_only();
     let mut stats = RenderStats::default();
     // (reflected, emission) of each sample of the chunk, by (pixel, sample index).
     let mut sums = Vec::with_capacity(CHUNK * spp);
@@ -200,17 +203,21 @@ pub(super) fn render<L: Lanes>(
             while left != 0 {
                 let l = left.trailing_zeros() as usize;
                 left &= left - 1;
-                // `vectorises` admits diffuse vertices only.
-                let arrived = arrive_lane(lanes, scene, &mut g, l, max_depth, &mut stats.rays);
+                let arrived = arrive_lane(lanes, scene, &mut g, l, max_depth, nee, &mut stats.rays);
                 let alive = match arrived {
                     None => false,
-                    Some((surface, albedo)) => {
+                    Some((surface, albedo))
+                        if vector && surface.material.kind == MaterialKind::Diffuse =>
+                    {
                         g.p.set_lane(l, surface.p);
                         g.ng.set_lane(l, surface.ng);
                         g.ns.set_lane(l, surface.ns);
                         g.color.set_lane(l, albedo);
                         group |= 1 << l;
                         true
+                    }
+                    Some((surface, albedo)) => {
+                        scatter_lane(scene, &mut g, l, &surface, albedo, nee, &mut stats.rays)
                     }
                 };
                 if !alive {
@@ -279,15 +286,40 @@ fn arrive_lane<'a, L: Lanes>(
     g: &mut Group,
     l: usize,
     max_depth: u32,
+    nee: bool,
     rays: &mut u64,
 ) -> Option<(Surface<'a>, Vec3)> {
     let (o, d) = (g.o.lane(l), g.d.lane(l));
     *rays += 1;
     let mut path = g.path(l);
     let hit = trace(lanes, scene, (o, d), g.take_shadow(l), &mut path.indirect);
-    let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, true, &mut g.out[l]);
+    let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, nee, &mut g.out[l]);
     g.indirect.set_lane(l, path.indirect);
     arrived
+}
+
+/// [`super::integrator::scatter`] in lane `l` (a vertex the vector stage does not
+/// handle): false when the path ends.
+#[inline(always)]
+fn scatter_lane(
+    scene: &RenderScene,
+    g: &mut Group,
+    l: usize,
+    surface: &Surface,
+    albedo: Vec3,
+    nee: bool,
+    rays: &mut u64,
+) -> bool {
+    let mut path = g.path(l);
+    let (mut o, mut d) = (g.o.lane(l), g.d.lane(l));
+    let (alive, shadow) = scatter(scene, &mut path, (&mut o, &mut d), surface, albedo, nee, rays);
+    g.set_path(l, &path);
+    g.o.set_lane(l, o);
+    g.d.set_lane(l, d);
+    if let Some(s) = shadow {
+        g.set_shadow(l, &s);
+    }
+    alive
 }
 
 /// [`super::microfacet::Frame`] of eight normals: tangents `s`, `t`.
