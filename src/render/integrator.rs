@@ -28,6 +28,27 @@ pub struct RenderStats {
     pub samples: u64,
     /// Rays cast: closest-hit and shadow rays.
     pub rays: u64,
+    /// Stream kernel only (zero elsewhere): times its eight-lane vector stage ran,
+    /// path vertices it shaded, and vertices shaded by the one-path step in a lane.
+    pub vector_stages: u64,
+    pub vector_vertices: u64,
+    pub lane_vertices: u64,
+}
+
+impl RenderStats {
+    /// Share of the vector stage's lanes that held a vertex to shade, if it ran.
+    pub fn vector_lane_occupancy(&self) -> Option<f64> {
+        (self.vector_stages > 0).then(|| {
+            self.vector_vertices as f64 / (self.vector_stages * super::lanes::WIDTH as u64) as f64
+        })
+    }
+
+    /// Share of the stream kernel's path vertices that the vector stage shaded, if that
+    /// kernel ran.
+    pub fn vector_vertex_share(&self) -> Option<f64> {
+        let all = self.vector_vertices + self.lane_vertices;
+        (all > 0).then(|| self.vector_vertices as f64 / all as f64)
+    }
 }
 
 /// How paths gather light: both reference strategies must agree on the mean.
@@ -457,6 +478,15 @@ pub fn render_pixels_counted(
     render_pixels_kernel(Sse, scene, frame, pixels, out, strategy)
 }
 
+/// Whether this CPU renders with the stream kernel ([`super::stream`]): those with
+/// x86-64-v3; the rest run the one-path kernel.
+pub fn stream_kernel() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return v3::available();
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
 /// The kernel compiled for x86-64-v3. A baseline binary still runs on every
 /// x86-64 CPU (the workers of a desktop grid are whatever machines an office
 /// has), while those with AVX2 get VEX three-operand code, TZCNT/LZCNT in BVH
@@ -718,7 +748,8 @@ mod tests {
             let a = render_pixels_kernel(Sse, &scene, 3, &pixels, &mut base, Strategy::NeeMis);
             // SAFETY: checked `v3::available` above.
             let b = unsafe { v3::render_pixels(&scene, 3, &pixels, &mut wide, Strategy::NeeMis) };
-            assert_eq!(a, b, "{kind:?}: work counters differ");
+            // The stream kernel's stage counters are its own.
+            assert_eq!((a.samples, a.rays), (b.samples, b.rays), "{kind:?}: work counters differ");
             assert!(a.rays > a.samples, "{kind:?}: paths did not bounce");
             for (i, (x, y)) in base.iter().zip(&wide).enumerate() {
                 assert_eq!(x, y, "{kind:?}: pixel {i} differs");

@@ -217,6 +217,7 @@ pub(super) fn render<L: Lanes>(
                         true
                     }
                     Some((surface, albedo)) => {
+                        stats.lane_vertices += 1;
                         scatter_lane(scene, &mut g, l, &surface, albedo, nee, &mut stats.rays)
                     }
                 };
@@ -226,6 +227,8 @@ pub(super) fn render<L: Lanes>(
                 }
             }
             if group != 0 {
+                stats.vector_stages += 1;
+                stats.vector_vertices += u64::from(group.count_ones());
                 let mut ended = scatter_diffuse(scene, &mut g, group, &mut stats.rays);
                 active &= !ended;
                 while ended != 0 {

@@ -14,7 +14,7 @@ use gridlight_actors::state::SceneState;
 use serde::Serialize;
 
 use crate::assets::Assets;
-use crate::render::{render_pixels_counted, RenderError, RenderScene, Strategy};
+use crate::render::{render_pixels_counted, stream_kernel, RenderError, RenderScene, Strategy};
 use crate::simgrid::cost::thread_cpu_seconds;
 
 /// The settings of one benchmark run.
@@ -81,6 +81,15 @@ pub struct TraceReport {
     pub node_lane_occupancy: f64,
     /// Share of the four lanes of a leaf's triangle test that hold a triangle.
     pub leaf_lane_occupancy: f64,
+    /// `stream` (eight paths in lanes, x86-64-v3 CPUs) or `one-path`.
+    pub kernel: &'static str,
+    /// Stream kernel: share of the eight lanes that held a vertex each time its vector
+    /// shading stage ran (null where the stage never ran).
+    pub vector_lane_occupancy: Option<f64>,
+    /// Stream kernel: share of path vertices shaded by the vector stage rather than the
+    /// one-path step in their lane (glossy, glass and conductor vertices; sun, sky and
+    /// point lights).
+    pub vector_vertex_share: Option<f64>,
 }
 
 /// Benchmarks one scene: the state's resolution and render settings are
@@ -125,6 +134,9 @@ pub fn bench_scene(
         runs: settings.runs.max(1),
         node_lane_occupancy: lanes.node_occupancy(),
         leaf_lane_occupancy: lanes.leaf_occupancy(),
+        kernel: if stream_kernel() { "stream" } else { "one-path" },
+        vector_lane_occupancy: stats.vector_lane_occupancy(),
+        vector_vertex_share: stats.vector_vertex_share(),
     })
 }
 
@@ -164,6 +176,16 @@ mod tests {
         // 36 triangles: leaves hold one to three of them, nodes at least two children.
         assert!(r.leaf_lane_occupancy > 0.25 && r.leaf_lane_occupancy <= 0.75);
         assert!(r.node_lane_occupancy >= 0.25 && r.node_lane_occupancy <= 1.0);
+        if stream_kernel() {
+            // Every vertex of the Cornell box is diffuse and area-lit: all take the vector
+            // stage, whose lanes drain only at the end of the 96 paths.
+            assert_eq!((r.kernel, r.vector_vertex_share), ("stream", Some(1.0)));
+            let occupancy = r.vector_lane_occupancy.unwrap();
+            assert!(occupancy > 0.5 && occupancy <= 1.0, "{occupancy}");
+        } else {
+            assert_eq!(r.kernel, "one-path");
+            assert_eq!((r.vector_lane_occupancy, r.vector_vertex_share), (None, None));
+        }
         let json = serde_json::to_value(&r).unwrap();
         for key in [
             "scene",
@@ -173,6 +195,9 @@ mod tests {
             "triangles",
             "node_lane_occupancy",
             "leaf_lane_occupancy",
+            "kernel",
+            "vector_lane_occupancy",
+            "vector_vertex_share",
         ] {
             assert!(json.get(key).is_some(), "missing {key}");
         }
