@@ -20,14 +20,19 @@
 //! data-dependent, [`super::integrator::arrive`], shared with the one-path kernel); then
 //! every lane goes through one vector stage: both 4-D sample draws, the light sample, the
 //! diffuse BSDF's value, MIS, the shadow ray's set-up, cosine sampling, the throughput
-//! update and Russian roulette. That stage takes diffuse vertices of scenes lit by area
-//! emitters with next-event estimation; other vertices (glossy, glass, conductor; point
-//! lights, the sun and environments; the BSDF-only strategy) take the one-path step
-//! ([`super::integrator::scatter`]) in their lane. Such scenes run as fast as with the
-//! one-path kernel or a little faster (medians of 5 on an Intel Xeon: bunny 1.13×, Sponza
-//! 1.00×; of 7 on an AMD EPYC: 1.03×, 0.96×, within that VM's spread), so one kernel
-//! serves every scene. An earlier measurement that had them slower (0.93×, 0.82×) was of
-//! a build whose end-of-path step was a closure compiled out of line, without AVX.
+//! update and Russian roulette. That stage takes every diffuse vertex when next-event
+//! estimation is on; its light sample is vector code where the scene is lit by area
+//! emitters only and [`super::lights::Lights::sample`] lane by lane otherwise (the sun,
+//! the sky, point lights: which strategy a lane draws is data-dependent, and the rest of
+//! the stage stays vector code: Sponza 1.04×, glossy-glass 1.14×, envmap-object parity
+//! within noise against lanes that took the one-path step there). Glossy, glass and
+//! conductor vertices, and the BSDF-only strategy, take the one-path step
+//! ([`super::integrator::scatter`]) in their lane. Scenes with such vertices run as fast
+//! as with the one-path kernel or a little faster (medians of 5 on an Intel Xeon: bunny
+//! 1.13×, Sponza 1.00×; of 7 on an AMD EPYC: 1.03×, 0.96×, within that VM's spread), so
+//! one kernel serves every scene. An earlier measurement that had them slower (0.93×,
+//! 0.82×) was of a build whose end-of-path step was a closure compiled out of line,
+//! without AVX.
 //!
 //! An earlier version kept each lane's state as a scalar struct and gathered it into
 //! vectors per stage: the gathers cost what the vector stage saved (parity on the Cornell
@@ -48,6 +53,7 @@ use super::integrator::{
     EMPTY_SAMPLE, RR_START_DEPTH,
 };
 use super::lanes::{Mask, F8, U8, V8, WIDTH};
+use super::lights::Lights;
 use super::sampler::{next4_lanes, SampleStream};
 use super::trig::sin_cos_lanes;
 use super::{PixelSample, RenderScene};
@@ -163,8 +169,8 @@ pub(super) fn render<L: Lanes>(
     let inv = 1.0 / spp as f32;
     let max_depth = state.render.max_depth;
     let nee = strategy == Strategy::NeeMis;
-    // Whether diffuse vertices take the vector stage (it samples area emitters only).
-    let vector = nee && scene.lights.area_only();
+    // Diffuse vertices take the vector stage, which samples lights (next-event estimation).
+    let vector = nee;
     let mut stats = RenderStats::default();
     // (reflected, emission) of each sample of the chunk, by (pixel, sample index).
     let mut sums = Vec::with_capacity(CHUNK * spp);
@@ -385,38 +391,13 @@ fn mis8(a: F8, b: F8) -> F8 {
     F8::select((a2 + b2).gt(zero), a2 / (a2 + b2), zero)
 }
 
-/// Next-event estimation and cosine-weighted continuation of the `group` lanes, all at
-/// diffuse vertices of a scene lit by area emitters only; returns the lanes whose paths
-/// ended (their pending shadow rays still to be traced).
+/// Light samples of eight lanes in a scene lit by area emitters only, as
+/// [`super::lights::Lights::sample`] draws them: an emitter by power, then a point on
+/// it. Returns the direction, distance, radiance, solid-angle pdf and whether a sample
+/// was drawn.
 #[inline(always)]
-fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u64) -> u32 {
-    use std::f32::consts::FRAC_1_PI;
-    let lights = &scene.lights;
+fn sample_area_lanes(lights: &Lights, p: V8, u_light: &[F8; 4]) -> (V8, F8, V8, F8, Mask) {
     let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
-    let gm = U8::from_bitmask(group);
-
-    let u_light = next4_lanes(g.seed, g.index, g.draw);
-    let u = next4_lanes(g.seed, g.index, g.draw.wrapping_add(U8::splat(1)));
-
-    // Two-sided: flip the normals to the viewer's side, then the shading frame (the
-    // geometric one where the shading normal faces away).
-    let wo_world = -g.d;
-    let flip = g.ng.dot(wo_world).lt(zero);
-    let ng = V8::select(flip, -g.ng, g.ng);
-    let ns = V8::select(flip, -g.ns, g.ns);
-    let (s1, t1) = frame(ns);
-    let wo1 = V8 { x: wo_world.dot(s1), y: wo_world.dot(t1), z: wo_world.dot(ns) };
-    let (s2, t2) = frame(ng);
-    let wo2 = V8 { x: wo_world.dot(s2), y: wo_world.dot(t2), z: wo_world.dot(ng) };
-    let geo = wo1.z.le(zero);
-    let fs = V8::select(geo, s2, s1);
-    let ft = V8::select(geo, t2, t1);
-    let fn_ = V8::select(geo, ng, ns);
-    let wo = V8::select(geo, wo2, wo1);
-    let p = g.p;
-    let color = g.color;
-
-    // Light sample: an area emitter by power, then a point on it.
     let mut v0 = V8::default();
     let mut e1 = V8::default();
     let mut e2 = V8::default();
@@ -444,6 +425,73 @@ fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u6
     let sampled = !(cos_light.le(zero) | dist2.eq(zero));
     let per_area = (radiance.x + radiance.y + radiance.z) / F8::splat(lights.area_power);
     let light_pdf = F8::splat(lights.strategy_pmf) * per_area * dist2 / cos_light;
+    (wi, dist, radiance, light_pdf, sampled)
+}
+
+/// The same for the `group` lanes of a scene with other lights (the sun, the sky,
+/// point lights, or several kinds): [`super::lights::Lights::sample`] lane by lane,
+/// whose choice among strategies and their sampling are data-dependent.
+#[inline(always)]
+fn sample_lights_per_lane(
+    lights: &Lights,
+    p: V8,
+    u_light: &[F8; 4],
+    group: u32,
+) -> (V8, F8, V8, F8, Mask) {
+    let (mut wi, mut dist, mut radiance) = (V8::default(), F8::splat(0.0), V8::default());
+    let (mut pdf, mut sampled) = (F8::splat(0.0), 0u32);
+    let mut left = group;
+    while left != 0 {
+        let l = left.trailing_zeros() as usize;
+        left &= left - 1;
+        let u = [u_light[0].0[l], u_light[1].0[l], u_light[2].0[l]];
+        if let Some(ls) = lights.sample(p.lane(l), u) {
+            wi.set_lane(l, ls.wi);
+            dist.0[l] = ls.dist;
+            radiance.set_lane(l, ls.radiance);
+            pdf.0[l] = ls.pdf;
+            sampled |= 1 << l;
+        }
+    }
+    (wi, dist, radiance, pdf, U8::from_bitmask(sampled))
+}
+
+/// Next-event estimation and cosine-weighted continuation of the `group` lanes, all at
+/// diffuse vertices; returns the lanes whose paths ended (their pending shadow rays
+/// still to be traced).
+#[inline(always)]
+fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u64) -> u32 {
+    use std::f32::consts::FRAC_1_PI;
+    let lights = &scene.lights;
+    let zero = F8::splat(0.0);
+    let gm = U8::from_bitmask(group);
+
+    let u_light = next4_lanes(g.seed, g.index, g.draw);
+    let u = next4_lanes(g.seed, g.index, g.draw.wrapping_add(U8::splat(1)));
+
+    // Two-sided: flip the normals to the viewer's side, then the shading frame (the
+    // geometric one where the shading normal faces away).
+    let wo_world = -g.d;
+    let flip = g.ng.dot(wo_world).lt(zero);
+    let ng = V8::select(flip, -g.ng, g.ng);
+    let ns = V8::select(flip, -g.ns, g.ns);
+    let (s1, t1) = frame(ns);
+    let wo1 = V8 { x: wo_world.dot(s1), y: wo_world.dot(t1), z: wo_world.dot(ns) };
+    let (s2, t2) = frame(ng);
+    let wo2 = V8 { x: wo_world.dot(s2), y: wo_world.dot(t2), z: wo_world.dot(ng) };
+    let geo = wo1.z.le(zero);
+    let fs = V8::select(geo, s2, s1);
+    let ft = V8::select(geo, t2, t1);
+    let fn_ = V8::select(geo, ng, ns);
+    let wo = V8::select(geo, wo2, wo1);
+    let p = g.p;
+    let color = g.color;
+
+    let (wi, dist, radiance, light_pdf, sampled) = if lights.area_only() {
+        sample_area_lanes(lights, p, &u_light)
+    } else {
+        sample_lights_per_lane(lights, p, &u_light, group)
+    };
 
     // The diffuse BSDF's value and pdf there.
     let wl = V8 { x: wi.dot(fs), y: wi.dot(ft), z: wi.dot(fn_) };
