@@ -15,10 +15,11 @@
 //! takes the next (pixel, sample) of the job at once, so lanes stay busy until the job's
 //! tail; one that ends at its hit is refilled and its camera ray traced before the
 //! vector stage runs, which keeps that stage's lanes 99 % busy on the Cornell box (81 %
-//! when refilled only after it, 6 % fewer samples per second). Per bounce, each lane's ray (and the shadow ray its last vertex left) is traced
-//! on its own and the hit is resolved per lane (materials and textures are
-//! data-dependent, [`super::integrator::arrive`], shared with the one-path kernel); then
-//! every lane goes through one vector stage: both 4-D sample draws, the light sample, the
+//! when refilled only after it, 6 % fewer samples per second). Per bounce, each lane's
+//! ray (and the shadow ray its last vertex left) is traced on its own and the hit is
+//! resolved per lane (materials and textures are data-dependent,
+//! [`super::integrator::arrive`], shared with the one-path kernel); then every lane goes
+//! through one vector stage: both 4-D sample draws, the light sample, the
 //! diffuse BSDF's value, MIS, the shadow ray's set-up, cosine sampling, the throughput
 //! update and Russian roulette. That stage takes every diffuse vertex when next-event
 //! estimation is on; its light sample is vector code where the scene is lit by area
@@ -168,9 +169,9 @@ pub(super) fn render<L: Lanes>(
     let spp = state.render.spp.max(1) as usize;
     let inv = 1.0 / spp as f32;
     let max_depth = state.render.max_depth;
+    // With next-event estimation diffuse vertices take the vector stage, which samples
+    // lights; without it every vertex takes the one-path step.
     let nee = strategy == Strategy::NeeMis;
-    // Diffuse vertices take the vector stage, which samples lights (next-event estimation).
-    let vector = nee;
     let mut stats = RenderStats::default();
     // (reflected, emission) of each sample of the chunk, by (pixel, sample index).
     let mut sums = Vec::with_capacity(CHUNK * spp);
@@ -222,7 +223,7 @@ pub(super) fn render<L: Lanes>(
                     let alive = match arrived {
                         None => false,
                         Some((surface, albedo))
-                            if vector && surface.material.kind == MaterialKind::Diffuse =>
+                            if nee && surface.material.kind == MaterialKind::Diffuse =>
                         {
                             g.p.set_lane(l, surface.p);
                             g.ng.set_lane(l, surface.ng);
