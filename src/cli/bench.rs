@@ -11,7 +11,7 @@ use anyhow::Context;
 
 use super::GlobalArgs;
 use crate::assets::Assets;
-use crate::render::testscenes;
+use crate::render::{testscenes, KernelBuild};
 use crate::scene::{self, AssetSearchPath};
 use crate::tools::bench::reconstruct::BenchSettings as ReconBench;
 use crate::tools::bench::trace::{bench_scene, TraceReport, TraceSettings};
@@ -91,6 +91,19 @@ pub struct TraceArgs {
     /// of the device, with the adapter's name) instead of one CPU core.
     #[arg(long)]
     pub gpu: bool,
+    /// The CPU kernel build to run (default: the fastest this CPU has). `baseline` is
+    /// what workers without AVX2 run; every build gives the same pixels.
+    #[arg(long, value_enum, conflicts_with = "gpu")]
+    pub build: Option<BuildArg>,
+}
+
+/// `--build` of `bench trace`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum BuildArg {
+    /// x86-64-v3: paths in AVX2 lanes (CPUs with AVX2, BMI1/2, LZCNT and FMA).
+    V3,
+    /// Baseline x86-64: paths in SSE2 lanes (every x86-64 CPU).
+    Baseline,
 }
 
 /// The built-in scenes of the default benchmark, relative to the `scenes/` folder.
@@ -123,10 +136,23 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
 }
 
 fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
+    let build = match args.build {
+        None => KernelBuild::best(),
+        Some(BuildArg::V3) => KernelBuild::V3,
+        Some(BuildArg::Baseline) => KernelBuild::Baseline,
+    };
+    if !build.available() {
+        anyhow::bail!(
+            "bench trace --build {}: this CPU lacks x86-64-v3 (AVX2, BMI1/2, LZCNT, FMA); \
+             it runs --build baseline",
+            build.name()
+        );
+    }
     let settings = TraceSettings {
         spp: args.spp,
         max_depth: args.max_depth,
         runs: args.runs,
+        build,
         ..TraceSettings::default()
     };
     if args.gpu {
@@ -141,7 +167,7 @@ fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
             println!("{}", serde_json::to_string(&r)?);
         } else {
             println!(
-                "{}: {:.3} M samples/s/core, {:.2} M rays/s/core, {} triangles ({}x{}, {} spp, max depth {}, {:.2} s)",
+                "{}: {:.3} M samples/s/core, {:.2} M rays/s/core, {} triangles ({}x{}, {} spp, max depth {}, {:.2} s, {} build)",
                 r.scene,
                 r.samples_per_second_per_core / 1e6,
                 r.rays_per_second_per_core / 1e6,
@@ -150,7 +176,8 @@ fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
                 r.height,
                 r.spp,
                 r.max_depth,
-                r.seconds
+                r.seconds,
+                r.build
             );
         }
     }

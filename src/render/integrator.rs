@@ -28,8 +28,9 @@ pub struct RenderStats {
     pub samples: u64,
     /// Rays cast: closest-hit and shadow rays.
     pub rays: u64,
-    /// Stream kernel only (zero elsewhere): times its eight-lane vector stage ran,
-    /// path vertices it shaded, and vertices shaded by the one-path step in a lane.
+    /// Times the stream kernel's eight-lane vector stage ran, path vertices it shaded,
+    /// and vertices shaded by the one-path step in a lane (zero in the one-path test
+    /// reference).
     pub vector_stages: u64,
     pub vector_vertices: u64,
     pub lane_vertices: u64,
@@ -209,8 +210,8 @@ pub(super) const EMPTY_SAMPLE: PixelSample = PixelSample {
     object: u32::MAX,
 };
 
-/// One camera path: its reflected radiance and G-buffer values.
-#[inline(always)]
+/// One camera path: its reflected radiance and G-buffer values (the one-path kernel).
+#[cfg(test)]
 fn trace_path<L: Lanes>(
     lanes: L,
     scene: &RenderScene,
@@ -458,11 +459,8 @@ pub fn render_pixels(scene: &RenderScene, frame: u64, pixels: &[u32], out: &mut 
 }
 
 /// [`render_pixels`] with a choice of light-gathering strategy, also returning
-/// how much work it did (for benchmarks and validation).
-///
-/// Runs the kernel compiled for x86-64-v3 (AVX2, BMI, LZCNT) where the CPU has
-/// it, and the baseline build elsewhere: the results are bit for bit the same
-/// (Rust never contracts or reorders float arithmetic), so a grid may mix both.
+/// how much work it did (for benchmarks and validation), in the best build this CPU
+/// runs ([`KernelBuild::best`]).
 pub fn render_pixels_counted(
     scene: &RenderScene,
     frame: u64,
@@ -470,28 +468,81 @@ pub fn render_pixels_counted(
     out: &mut Vec<PixelSample>,
     strategy: Strategy,
 ) -> RenderStats {
-    #[cfg(target_arch = "x86_64")]
-    if v3::available() {
-        // SAFETY: the CPU has every feature `v3::render_pixels` is compiled with.
-        return unsafe { v3::render_pixels(scene, frame, pixels, out, strategy) };
+    render_pixels_in(KernelBuild::best(), scene, frame, pixels, out, strategy)
+}
+
+/// A compiled build of the stream kernel ([`super::stream`]). A baseline binary still
+/// runs on every x86-64 CPU (the workers of a desktop grid are whatever machines an
+/// office has), while those with AVX2 get the x86-64-v3 build. Every build gives the
+/// same pixels bit for bit (each lane operation is one IEEE operation in the scalar
+/// code's order, and Rust never contracts or reorders float arithmetic), so a grid may
+/// mix them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KernelBuild {
+    /// x86-64-v3: paths in AVX2 registers, node tests in one AVX register, TZCNT/LZCNT
+    /// in traversal, VEX three-operand code.
+    V3,
+    /// Baseline x86-64: paths in two SSE2 halves, node tests in two SSE halves (scalar
+    /// code off x86-64).
+    Baseline,
+}
+
+impl KernelBuild {
+    /// The fastest build this CPU runs.
+    pub fn best() -> Self {
+        if Self::V3.available() {
+            Self::V3
+        } else {
+            Self::Baseline
+        }
     }
-    render_pixels_kernel(Sse, scene, frame, pixels, out, strategy)
+
+    /// Whether this CPU runs the build.
+    pub fn available(self) -> bool {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Self::V3 => v3::available(),
+            #[cfg(not(target_arch = "x86_64"))]
+            Self::V3 => false,
+            Self::Baseline => true,
+        }
+    }
+
+    /// The instruction-set level the build is compiled for.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::V3 => "x86-64-v3",
+            Self::Baseline => "baseline",
+        }
+    }
 }
 
-/// Whether this CPU renders with the stream kernel ([`super::stream`]): those with
-/// x86-64-v3; the rest run the one-path kernel.
-pub fn stream_kernel() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    return v3::available();
-    #[cfg(not(target_arch = "x86_64"))]
-    false
+/// [`render_pixels_counted`] in the given build.
+///
+/// # Panics
+/// Where this CPU cannot run `build` (see [`KernelBuild::available`]).
+pub fn render_pixels_in(
+    build: KernelBuild,
+    scene: &RenderScene,
+    frame: u64,
+    pixels: &[u32],
+    out: &mut Vec<PixelSample>,
+    strategy: Strategy,
+) -> RenderStats {
+    assert!(build.available(), "this CPU cannot run the {} build of the kernel", build.name());
+    match build {
+        // SAFETY: the CPU has every feature `v3::render_pixels` is compiled with.
+        #[cfg(target_arch = "x86_64")]
+        KernelBuild::V3 => unsafe { v3::render_pixels(scene, frame, pixels, out, strategy) },
+        #[cfg(not(target_arch = "x86_64"))]
+        KernelBuild::V3 => unreachable!("no x86-64-v3 build off x86-64"),
+        KernelBuild::Baseline => super::stream::render(Sse, scene, frame, pixels, out, strategy),
+    }
 }
 
-/// The kernel compiled for x86-64-v3. A baseline binary still runs on every
-/// x86-64 CPU (the workers of a desktop grid are whatever machines an office
-/// has), while those with AVX2 get VEX three-operand code, TZCNT/LZCNT in BVH
-/// traversal, wider integer SIMD (about 12 % more samples per second) and node tests
-/// in one eight-lane AVX register ([`crate::render::accel::Avx`], 5–10 % more).
+/// The kernel compiled for x86-64-v3: AVX2 lanes for paths (about 1.4× the baseline
+/// build's samples per second), node tests in one eight-lane AVX register
+/// ([`crate::render::accel::Avx`]), TZCNT/LZCNT in BVH traversal.
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod v3 {
     use super::*;
@@ -517,25 +568,26 @@ pub(crate) mod v3 {
         out: &mut Vec<PixelSample>,
         strategy: Strategy,
     ) -> RenderStats {
-        // x86-64-v3 includes AVX, which `available` checked.
-        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX");
-        render_pixels_kernel(lanes, scene, frame, pixels, out, strategy)
+        // x86-64-v3 includes AVX and AVX2, which `available` checked.
+        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX2");
+        super::super::stream::render(lanes, scene, frame, pixels, out, strategy)
     }
 
     /// # Safety
     /// Only on a CPU for which [`available`] is true.
     #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt,fma")]
     pub unsafe fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
-        // x86-64-v3 includes AVX, which `available` checked.
-        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX");
+        // x86-64-v3 includes AVX and AVX2, which `available` checked.
+        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX2");
         primary_hits_with(lanes, scene, first, out)
     }
 }
 
-/// The body of [`render_pixels_counted`], inlined into each build of it.
-#[inline(always)]
-fn render_pixels_kernel<L: Lanes>(
-    lanes: L,
+/// The one-path kernel: each camera path traced to its end before the next starts, in
+/// the baseline build. The stream kernel replaced it; it stays as the reference the
+/// stream kernel's bits are tested against.
+#[cfg(test)]
+pub(crate) fn render_pixels_one_path(
     scene: &RenderScene,
     frame: u64,
     pixels: &[u32],
@@ -543,15 +595,10 @@ fn render_pixels_kernel<L: Lanes>(
     strategy: Strategy,
 ) -> RenderStats {
     out.clear();
-    out.reserve(pixels.len());
     let state = scene.state();
     let width = state.resolution.width.max(1);
     let spp = state.render.spp.max(1);
     let inv = 1.0 / spp as f32;
-    // Only the v3 build has an `Avx` token, and the stream kernel needs AVX2.
-    if L::AVX {
-        return super::stream::render(lanes, scene, frame, pixels, out, strategy);
-    }
     let mut stats = RenderStats::default();
     for &pixel in pixels {
         let pos = Vec2::new((pixel % width) as f32, (pixel / width) as f32);
@@ -559,7 +606,7 @@ fn render_pixels_kernel<L: Lanes>(
         for index in 0..spp {
             let stream = SampleStream::new(state.seed, frame, pixel, index);
             let s = trace_path(
-                lanes,
+                Sse,
                 scene,
                 stream,
                 pos,
@@ -696,19 +743,17 @@ mod tests {
     use crate::render::testscenes;
     use gridlight_actors::state::MaterialKind;
 
-    /// The x86-64-v3 build of the kernel must give the baseline's results bit for
-    /// bit, for every material kind (a grid mixes CPUs).
-    #[cfg(target_arch = "x86_64")]
+    /// Every build of the stream kernel must give the one-path reference's results bit
+    /// for bit, for every material kind (a grid mixes CPUs).
     #[test]
-    fn v3_kernel_matches_the_baseline_bit_for_bit() {
-        if !v3::available() {
-            let why = "the CPU lacks x86-64-v3, so only the baseline kernel runs";
-            crate::testing::skip(
-                "v3_kernel_matches_the_baseline",
-                crate::testing::Missing::CpuFeature,
-                why,
-            );
-            return;
+    fn every_kernel_build_matches_the_one_path_reference_bit_for_bit() {
+        let mut builds = vec![KernelBuild::Baseline];
+        if KernelBuild::V3.available() {
+            builds.push(KernelBuild::V3);
+        } else {
+            let why = "the CPU lacks x86-64-v3, so only the baseline build was checked";
+            let test = "every_kernel_build_matches_the_one_path_reference_bit_for_bit";
+            crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
         }
         // The last case textures the walls (uvs 0..1 reach both ends of the texel wrap).
         let kinds = [
@@ -744,17 +789,23 @@ mod tests {
             let scene = RenderScene::new(assets, &state).unwrap();
             assert_eq!(scene.lights.area_only(), !environment);
             let pixels: Vec<u32> = (0..40 * 30).collect();
-            let (mut base, mut wide) = (Vec::new(), Vec::new());
-            let a = render_pixels_kernel(Sse, &scene, 3, &pixels, &mut base, Strategy::NeeMis);
-            // SAFETY: checked `v3::available` above.
-            let b = unsafe { v3::render_pixels(&scene, 3, &pixels, &mut wide, Strategy::NeeMis) };
-            // The stream kernel's stage counters are its own.
-            assert_eq!((a.samples, a.rays), (b.samples, b.rays), "{kind:?}: work counters differ");
-            assert!(a.rays > a.samples, "{kind:?}: paths did not bounce");
-            for (i, (x, y)) in base.iter().zip(&wide).enumerate() {
-                assert_eq!(x, y, "{kind:?}: pixel {i} differs");
+            for strategy in [Strategy::NeeMis, Strategy::BsdfOnly] {
+                let mut reference = Vec::new();
+                let a = render_pixels_one_path(&scene, 3, &pixels, &mut reference, strategy);
+                assert!(a.rays > a.samples, "{kind:?}: paths did not bounce");
+                for &build in &builds {
+                    let mut out = Vec::new();
+                    let b = render_pixels_in(build, &scene, 3, &pixels, &mut out, strategy);
+                    let case = format!("{kind:?}, {strategy:?}, {build:?}");
+                    // The stream kernel's stage counters are its own.
+                    let work = ((a.samples, a.rays), (b.samples, b.rays));
+                    assert_eq!(work.0, work.1, "{case}: work counters differ");
+                    for (i, (x, y)) in reference.iter().zip(&out).enumerate() {
+                        assert_eq!(x, y, "{case}: pixel {i} differs");
+                    }
+                }
             }
-            // The G-buffer's primary hits too (dispatched to v3 here).
+            // The G-buffer's primary hits too (dispatched to v3 where the CPU has it).
             let mut hits = vec![PixelSample::default(); pixels.len()];
             primary_hits(&scene, 0, &mut hits);
             for (i, h) in hits.iter().enumerate() {

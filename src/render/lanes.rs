@@ -1,45 +1,78 @@
 //! Eight paths' numbers side by side: `f32` and `u32` lanes with element-wise
-//! operators, for the stream kernel ([`super::stream`]).
+//! operators, for the stream kernel ([`super::stream`]), in each kernel build's
+//! instructions.
 //!
-//! On x86-64 every operator is one AVX/AVX2 instruction on a 256-bit register, so these
-//! types may only be used by code that runs in the x86-64-v3 build (the stream kernel is
-//! inlined into `integrator::v3`, whose features make the intrinsics inline there);
-//! elsewhere they are loops over eight elements. Each operator is one IEEE operation per
-//! lane, never fused (Rust does not contract `mul` and `add` into FMA), so a lane's
-//! value is exactly what the scalar code computes from the same inputs in the same order:
-//! that is what lets the stream kernel give the one-path kernel's bits. Not `std::simd`
+//! The lane types carry the instruction set they compile to as a type parameter
+//! ([`Isa`]): [`Avx2`] makes every operator one AVX/AVX2 instruction on a 256-bit
+//! register, [`Sse2`] two SSE2 instructions on 128-bit halves (baseline x86-64, so every
+//! x86-64 CPU runs it); off x86-64 both are loops over eight elements. A parameter, not
+//! a compile-time target feature, because one binary holds both builds and picks one at
+//! run time ([`super::integrator::render_pixels_counted`]): `F8<Avx2>` may only be used by
+//! code inlined into the x86-64-v3 build, whose features make its intrinsics inline there
+//! (the stream kernel names its lanes through [`super::accel::Lanes::Simd`], which only
+//! the v3 build's token maps to `Avx2`).
+//!
+//! Each operator is one IEEE operation per lane, never fused (Rust does not contract
+//! `mul` and `add` into FMA), so a lane's value is exactly what the scalar code computes
+//! from the same inputs in the same order, in either instruction set: that is what lets
+//! every build of the stream kernel give the one-path kernel's bits. Not `std::simd`
 //! (nightly only) nor the `wide` crate (it picks its instructions by compile-time target
 //! features, so the run-time dispatched v3 build would get SSE halves); LLVM's own
-//! vectorisation of eight-element loops was tried and gave half-width code with spills.
+//! vectorisation of eight-element loops gave half-width code with spills in the v3
+//! build (0.77× the intrinsics' samples per second on the Cornell box).
 //!
 //! Comparisons return a [`Mask`] of all-ones or all-zero lanes, and [`F8::select`] picks
 //! by bits, so branches of the scalar code become blends of both sides.
 
+use std::fmt::Debug;
+use std::marker::PhantomData;
 use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Neg, Not, Shl, Shr, Sub};
 
 /// Lanes per group.
 pub const WIDTH: usize = 8;
 
+/// The instructions a lane type's operators compile to.
+pub trait Isa: Copy + Default + Debug + PartialEq + Eq {
+    /// AVX/AVX2 registers (else SSE2 halves).
+    const AVX2: bool;
+}
+
+/// One AVX/AVX2 register per lane group: only in code of the x86-64-v3 build.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Avx2;
+
+impl Isa for Avx2 {
+    const AVX2: bool = true;
+}
+
+/// Two SSE2 halves per lane group: every x86-64 CPU.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sse2;
+
+impl Isa for Sse2 {
+    const AVX2: bool = false;
+}
+
 /// Eight `f32` lanes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C, align(32))]
-pub struct F8(pub [f32; WIDTH]);
+pub struct F8<I>(pub [f32; WIDTH], PhantomData<I>);
 
 /// Eight `u32` lanes (also masks: all ones is true).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(C, align(32))]
-pub struct U8(pub [u32; WIDTH]);
+pub struct U8<I>(pub [u32; WIDTH], PhantomData<I>);
 
 /// Lanes of all ones (true) or all zeros (false).
-pub type Mask = U8;
+pub type Mask<I> = U8<I>;
 
-/// Runs an AVX/AVX2 expression on the lanes as registers.
+/// Runs SIMD intrinsics on the lanes as registers.
 ///
-/// SAFETY (of every use): the lane types are only used by code inlined into the
-/// x86-64-v3 build, which runs only where the CPU has AVX2; `F8`/`U8` are 32 aligned
-/// bytes, the layout of `__m256`/`__m256i`.
+/// SAFETY (of every use): the AVX/AVX2 side runs only for `Avx2` lanes, which only code
+/// inlined into the x86-64-v3 build uses, and that build runs only where the CPU has
+/// AVX2; SSE2 is part of baseline x86-64.
 #[cfg(target_arch = "x86_64")]
-macro_rules! avx {
+macro_rules! simd {
     ($e:expr) => {{
         #[allow(unused_unsafe, clippy::undocumented_unsafe_blocks)]
         let out = unsafe {
@@ -53,40 +86,89 @@ macro_rules! avx {
 
 #[cfg(target_arch = "x86_64")]
 mod reg {
-    //! Reinterpretation between the lane types and AVX registers (no instructions).
-    use super::{F8, U8};
-    use std::arch::x86_64::{__m256, __m256i};
+    //! Reinterpretation between lane arrays and registers (no instructions).
+    use std::arch::x86_64::{__m128, __m128i, __m256, __m256i};
 
     #[inline(always)]
-    pub fn f(x: F8) -> __m256 {
+    pub fn f(x: [f32; 8]) -> __m256 {
         // SAFETY: same size (32 bytes), any bits are a valid value of either.
         unsafe { std::mem::transmute(x) }
     }
     #[inline(always)]
-    pub fn u(x: U8) -> __m256i {
+    pub fn u(x: [u32; 8]) -> __m256i {
         // SAFETY: as `f`.
         unsafe { std::mem::transmute(x) }
     }
     #[inline(always)]
-    pub fn fo(x: __m256) -> F8 {
+    pub fn fo(x: __m256) -> [f32; 8] {
         // SAFETY: as `f`.
         unsafe { std::mem::transmute(x) }
     }
     #[inline(always)]
-    pub fn uo(x: __m256i) -> U8 {
+    pub fn uo(x: __m256i) -> [u32; 8] {
+        // SAFETY: as `f`.
+        unsafe { std::mem::transmute(x) }
+    }
+    /// The two SSE halves.
+    #[inline(always)]
+    pub fn f2(x: [f32; 8]) -> [__m128; 2] {
+        // SAFETY: as `f`.
+        unsafe { std::mem::transmute(x) }
+    }
+    #[inline(always)]
+    pub fn u2(x: [u32; 8]) -> [__m128i; 2] {
+        // SAFETY: as `f`.
+        unsafe { std::mem::transmute(x) }
+    }
+    #[inline(always)]
+    pub fn fo2(x: [__m128; 2]) -> [f32; 8] {
+        // SAFETY: as `f`.
+        unsafe { std::mem::transmute(x) }
+    }
+    #[inline(always)]
+    pub fn uo2(x: [__m128i; 2]) -> [u32; 8] {
         // SAFETY: as `f`.
         unsafe { std::mem::transmute(x) }
     }
 }
 
+/// The same SSE2 operation on both halves of two lane arrays (written out twice, not a
+/// closure, so that it is never compiled out of line).
+#[cfg(target_arch = "x86_64")]
+macro_rules! halves {
+    ($kind:ident, $a:expr, $b:expr, |$x:ident, $y:ident| $e:expr) => {{
+        let (a, b) = (halves!(@in $kind, $a), halves!(@in $kind, $b));
+        let lo = {
+            let ($x, $y) = (a[0], b[0]);
+            simd!($e)
+        };
+        let hi = {
+            let ($x, $y) = (a[1], b[1]);
+            simd!($e)
+        };
+        halves!(@out $kind, [lo, hi])
+    }};
+    (@in f, $e:expr) => { reg::f2($e) };
+    (@in u, $e:expr) => { reg::u2($e) };
+    (@out f, $e:expr) => { reg::fo2($e) };
+    (@out u, $e:expr) => { reg::uo2($e) };
+}
+
+/// A binary operator: `$avx` for AVX2 lanes, `$sse` on both halves for SSE2 lanes, the
+/// scalar `$op` lane by lane off x86-64.
 macro_rules! lanewise {
-    ($ty:ident, $trait:ident, $f:ident, $op:tt, $avx:expr) => {
-        impl $trait for $ty {
-            type Output = $ty;
+    ($ty:ident, $kind:ident, $trait:ident, $f:ident, $op:tt, $avx:ident, $sse:ident) => {
+        impl<I: Isa> $trait for $ty<I> {
+            type Output = $ty<I>;
             #[inline(always)]
-            fn $f(self, o: $ty) -> $ty {
+            fn $f(self, o: $ty<I>) -> $ty<I> {
                 #[cfg(target_arch = "x86_64")]
-                return $avx(self, o);
+                return $ty::new(if I::AVX2 {
+                    let (a, b) = (reg::$kind(self.0), reg::$kind(o.0));
+                    lanewise!(@out $kind, simd!($avx(a, b)))
+                } else {
+                    halves!($kind, self.0, o.0, |x, y| $sse(x, y))
+                });
                 #[cfg(not(target_arch = "x86_64"))]
                 {
                     let mut out = self;
@@ -98,64 +180,74 @@ macro_rules! lanewise {
             }
         }
     };
+    (@out f, $e:expr) => { reg::fo($e) };
+    (@out u, $e:expr) => { reg::uo($e) };
 }
 
-lanewise!(F8, Add, add, +, |a, b| reg::fo(avx!(_mm256_add_ps(reg::f(a), reg::f(b)))));
-lanewise!(F8, Sub, sub, -, |a, b| reg::fo(avx!(_mm256_sub_ps(reg::f(a), reg::f(b)))));
-lanewise!(F8, Mul, mul, *, |a, b| reg::fo(avx!(_mm256_mul_ps(reg::f(a), reg::f(b)))));
-lanewise!(F8, Div, div, /, |a, b| reg::fo(avx!(_mm256_div_ps(reg::f(a), reg::f(b)))));
-lanewise!(U8, BitAnd, bitand, &, |a, b| reg::uo(avx!(_mm256_and_si256(reg::u(a), reg::u(b)))));
-lanewise!(U8, BitOr, bitor, |, |a, b| reg::uo(avx!(_mm256_or_si256(reg::u(a), reg::u(b)))));
-lanewise!(U8, BitXor, bitxor, ^, |a, b| reg::uo(avx!(_mm256_xor_si256(reg::u(a), reg::u(b)))));
+lanewise!(F8, f, Add, add, +, _mm256_add_ps, _mm_add_ps);
+lanewise!(F8, f, Sub, sub, -, _mm256_sub_ps, _mm_sub_ps);
+lanewise!(F8, f, Mul, mul, *, _mm256_mul_ps, _mm_mul_ps);
+lanewise!(F8, f, Div, div, /, _mm256_div_ps, _mm_div_ps);
+lanewise!(U8, u, BitAnd, bitand, &, _mm256_and_si256, _mm_and_si128);
+lanewise!(U8, u, BitOr, bitor, |, _mm256_or_si256, _mm_or_si128);
+lanewise!(U8, u, BitXor, bitxor, ^, _mm256_xor_si256, _mm_xor_si128);
 
-impl Neg for F8 {
-    type Output = F8;
+impl<I: Isa> Neg for F8<I> {
+    type Output = F8<I>;
     #[inline(always)]
-    fn neg(self) -> F8 {
+    fn neg(self) -> F8<I> {
         F8::from_bits(self.to_bits() ^ U8::splat(0x8000_0000))
     }
 }
 
-impl Not for U8 {
-    type Output = U8;
+impl<I: Isa> Not for U8<I> {
+    type Output = U8<I>;
     #[inline(always)]
-    fn not(self) -> U8 {
+    fn not(self) -> U8<I> {
         self ^ U8::splat(u32::MAX)
     }
 }
 
-impl Shr<u32> for U8 {
-    type Output = U8;
-    #[inline(always)]
-    fn shr(self, n: u32) -> U8 {
-        #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_srl_epi32(reg::u(self), _mm_cvtsi32_si128(n as i32))));
-        #[cfg(not(target_arch = "x86_64"))]
-        self.map(|x| x >> n)
-    }
+/// A shift by the same count in every lane.
+macro_rules! shift {
+    ($trait:ident, $f:ident, $op:tt, $avx:ident, $sse:ident) => {
+        impl<I: Isa> $trait<u32> for U8<I> {
+            type Output = U8<I>;
+            #[inline(always)]
+            fn $f(self, n: u32) -> U8<I> {
+                #[cfg(target_arch = "x86_64")]
+                return U8::new(if I::AVX2 {
+                    reg::uo(simd!($avx(reg::u(self.0), _mm_cvtsi32_si128(n as i32))))
+                } else {
+                    let count = simd!(_mm_cvtsi32_si128(n as i32));
+                    let h = reg::u2(self.0);
+                    reg::uo2([simd!($sse(h[0], count)), simd!($sse(h[1], count))])
+                });
+                #[cfg(not(target_arch = "x86_64"))]
+                self.map(|x| x $op n)
+            }
+        }
+    };
 }
 
-impl Shl<u32> for U8 {
-    type Output = U8;
-    #[inline(always)]
-    fn shl(self, n: u32) -> U8 {
-        #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_sll_epi32(reg::u(self), _mm_cvtsi32_si128(n as i32))));
-        #[cfg(not(target_arch = "x86_64"))]
-        self.map(|x| x << n)
-    }
-}
+shift!(Shr, shr, >>, _mm256_srl_epi32, _mm_srl_epi32);
+shift!(Shl, shl, <<, _mm256_sll_epi32, _mm_sll_epi32);
 
-/// A comparison: AVX predicate on x86-64, the scalar operator elsewhere.
+/// A comparison: AVX predicate or SSE2 comparison on x86-64, the scalar operator
+/// elsewhere (all ordered: false where either side is NaN).
 macro_rules! compare {
-    ($name:ident, $op:tt, $pred:ident) => {
+    ($name:ident, $op:tt, $pred:ident, $sse:ident) => {
         #[inline(always)]
-        pub fn $name(self, o: Self) -> Mask {
+        pub fn $name(self, o: Self) -> Mask<I> {
             #[cfg(target_arch = "x86_64")]
-            return reg::uo(avx!(_mm256_castps_si256(_mm256_cmp_ps::<$pred>(
-                reg::f(self),
-                reg::f(o)
-            ))));
+            return if I::AVX2 {
+                U8::new(reg::uo(simd!(_mm256_castps_si256(_mm256_cmp_ps::<$pred>(
+                    reg::f(self.0),
+                    reg::f(o.0)
+                )))))
+            } else {
+                U8::from_bits_of(halves!(f, self.0, o.0, |x, y| $sse(x, y)))
+            };
             #[cfg(not(target_arch = "x86_64"))]
             {
                 let mut out = U8::default();
@@ -168,37 +260,42 @@ macro_rules! compare {
     };
 }
 
-impl F8 {
+impl<I: Isa> F8<I> {
+    #[inline(always)]
+    pub fn new(lanes: [f32; WIDTH]) -> Self {
+        Self(lanes, PhantomData)
+    }
+
     #[inline(always)]
     pub fn splat(x: f32) -> Self {
-        Self([x; WIDTH])
+        Self::new([x; WIDTH])
     }
 
     #[inline(always)]
     pub fn map(self, f: impl Fn(f32) -> f32) -> Self {
-        let mut out = self;
-        for i in 0..WIDTH {
-            out.0[i] = f(self.0[i]);
-        }
-        out
+        Self::new(self.0.map(f))
     }
 
-    compare!(lt, <, _CMP_LT_OQ);
-    compare!(le, <=, _CMP_LE_OQ);
-    compare!(gt, >, _CMP_GT_OQ);
-    compare!(ge, >=, _CMP_GE_OQ);
-    compare!(eq, ==, _CMP_EQ_OQ);
+    compare!(lt, <, _CMP_LT_OQ, _mm_cmplt_ps);
+    compare!(le, <=, _CMP_LE_OQ, _mm_cmple_ps);
+    compare!(gt, >, _CMP_GT_OQ, _mm_cmpgt_ps);
+    compare!(ge, >=, _CMP_GE_OQ, _mm_cmpge_ps);
+    compare!(eq, ==, _CMP_EQ_OQ, _mm_cmpeq_ps);
 
     /// `mask ? a : b` per lane, by bits.
     #[inline(always)]
-    pub fn select(mask: Mask, a: Self, b: Self) -> Self {
+    pub fn select(mask: Mask<I>, a: Self, b: Self) -> Self {
         F8::from_bits(U8::select(mask, a.to_bits(), b.to_bits()))
     }
 
     #[inline(always)]
     pub fn sqrt(self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return reg::fo(avx!(_mm256_sqrt_ps(reg::f(self))));
+        return F8::new(if I::AVX2 {
+            reg::fo(simd!(_mm256_sqrt_ps(reg::f(self.0))))
+        } else {
+            halves!(f, self.0, self.0, |x, _y| _mm_sqrt_ps(x))
+        });
         #[cfg(not(target_arch = "x86_64"))]
         self.map(f32::sqrt)
     }
@@ -214,190 +311,225 @@ impl F8 {
     #[inline(always)]
     pub fn max(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return avx!({
-            let (x, y) = (reg::f(self), reg::f(o));
-            let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
-            reg::fo(_mm256_blendv_ps(_mm256_max_ps(y, x), y, nan))
+        return F8::new(if I::AVX2 {
+            simd!({
+                let (x, y) = (reg::f(self.0), reg::f(o.0));
+                let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
+                reg::fo(_mm256_blendv_ps(_mm256_max_ps(y, x), y, nan))
+            })
+        } else {
+            halves!(f, self.0, o.0, |x, y| {
+                let nan = _mm_cmpunord_ps(x, x);
+                _mm_or_ps(_mm_and_ps(nan, y), _mm_andnot_ps(nan, _mm_max_ps(y, x)))
+            })
         });
         #[cfg(not(target_arch = "x86_64"))]
-        self.zip(o, f32::max)
+        F8::new(std::array::from_fn(|i| self.0[i].max(o.0[i])))
     }
 
     /// [`f32::min`] per lane, as [`F8::max`].
     #[inline(always)]
     pub fn min(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return avx!({
-            let (x, y) = (reg::f(self), reg::f(o));
-            let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
-            reg::fo(_mm256_blendv_ps(_mm256_min_ps(y, x), y, nan))
+        return F8::new(if I::AVX2 {
+            simd!({
+                let (x, y) = (reg::f(self.0), reg::f(o.0));
+                let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
+                reg::fo(_mm256_blendv_ps(_mm256_min_ps(y, x), y, nan))
+            })
+        } else {
+            halves!(f, self.0, o.0, |x, y| {
+                let nan = _mm_cmpunord_ps(x, x);
+                _mm_or_ps(_mm_and_ps(nan, y), _mm_andnot_ps(nan, _mm_min_ps(y, x)))
+            })
         });
         #[cfg(not(target_arch = "x86_64"))]
-        self.zip(o, f32::min)
-    }
-
-    #[cfg(not(target_arch = "x86_64"))]
-    #[inline(always)]
-    fn zip(self, o: Self, f: impl Fn(f32, f32) -> f32) -> Self {
-        let mut out = self;
-        for i in 0..WIDTH {
-            out.0[i] = f(self.0[i], o.0[i]);
-        }
-        out
+        F8::new(std::array::from_fn(|i| self.0[i].min(o.0[i])))
     }
 
     /// `x as i32` of each lane, for |x| < 2³¹ (truncation towards zero), as bits.
     #[inline(always)]
-    pub fn trunc_i32(self) -> U8 {
+    pub fn trunc_i32(self) -> U8<I> {
         #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_cvttps_epi32(reg::f(self))));
+        return U8::new(if I::AVX2 {
+            reg::uo(simd!(_mm256_cvttps_epi32(reg::f(self.0))))
+        } else {
+            let h = reg::f2(self.0);
+            reg::uo2([simd!(_mm_cvttps_epi32(h[0])), simd!(_mm_cvttps_epi32(h[1]))])
+        });
         #[cfg(not(target_arch = "x86_64"))]
-        U8(self.0.map(|x| x as i32 as u32))
+        U8::new(self.0.map(|x| x as i32 as u32))
     }
 
     /// `x as f32` of each lane read as `i32`.
     #[inline(always)]
-    pub fn from_i32(x: U8) -> Self {
+    pub fn from_i32(x: U8<I>) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return reg::fo(avx!(_mm256_cvtepi32_ps(reg::u(x))));
+        return F8::new(if I::AVX2 {
+            reg::fo(simd!(_mm256_cvtepi32_ps(reg::u(x.0))))
+        } else {
+            let h = reg::u2(x.0);
+            reg::fo2([simd!(_mm_cvtepi32_ps(h[0])), simd!(_mm_cvtepi32_ps(h[1]))])
+        });
         #[cfg(not(target_arch = "x86_64"))]
-        F8(x.0.map(|x| x as i32 as f32))
+        F8::new(x.0.map(|x| x as i32 as f32))
     }
 
     #[inline(always)]
-    pub fn to_bits(self) -> U8 {
-        U8(self.0.map(f32::to_bits))
+    pub fn to_bits(self) -> U8<I> {
+        U8::new(self.0.map(f32::to_bits))
     }
 
     #[inline(always)]
-    pub fn from_bits(b: U8) -> Self {
-        F8(b.0.map(f32::from_bits))
+    pub fn from_bits(b: U8<I>) -> Self {
+        F8::new(b.0.map(f32::from_bits))
     }
 }
 
-impl U8 {
+impl<I: Isa> U8<I> {
+    #[inline(always)]
+    pub fn new(lanes: [u32; WIDTH]) -> Self {
+        Self(lanes, PhantomData)
+    }
+
     #[inline(always)]
     pub fn splat(x: u32) -> Self {
-        Self([x; WIDTH])
+        Self::new([x; WIDTH])
+    }
+
+    /// The bits of eight `f32` lanes.
+    #[inline(always)]
+    fn from_bits_of(x: [f32; WIDTH]) -> Self {
+        Self::new(x.map(f32::to_bits))
     }
 
     #[inline(always)]
     pub fn map(self, f: impl Fn(u32) -> u32) -> Self {
-        let mut out = self;
-        for i in 0..WIDTH {
-            out.0[i] = f(self.0[i]);
-        }
-        out
+        Self::new(self.0.map(f))
     }
 
     /// `mask ? a : b` per lane, by bits.
     #[inline(always)]
-    pub fn select(mask: Mask, a: Self, b: Self) -> Self {
+    pub fn select(mask: Mask<I>, a: Self, b: Self) -> Self {
         (mask & a) | (!mask & b)
     }
 
     #[inline(always)]
     pub fn wrapping_mul(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_mullo_epi32(reg::u(self), reg::u(o))));
+        return U8::new(if I::AVX2 {
+            reg::uo(simd!(_mm256_mullo_epi32(reg::u(self.0), reg::u(o.0))))
+        } else {
+            // SSE2 has no 32-bit low multiply: even and odd lanes' 64-bit products,
+            // their low halves interleaved back.
+            halves!(u, self.0, o.0, |a, b| {
+                let even = _mm_mul_epu32(a, b);
+                let odd = _mm_mul_epu32(_mm_srli_epi64::<32>(a), _mm_srli_epi64::<32>(b));
+                _mm_unpacklo_epi32(
+                    _mm_shuffle_epi32::<0b00_00_10_00>(even),
+                    _mm_shuffle_epi32::<0b00_00_10_00>(odd),
+                )
+            })
+        });
         #[cfg(not(target_arch = "x86_64"))]
-        {
-            let mut out = self;
-            for i in 0..WIDTH {
-                out.0[i] = self.0[i].wrapping_mul(o.0[i]);
-            }
-            out
-        }
+        U8::new(std::array::from_fn(|i| self.0[i].wrapping_mul(o.0[i])))
     }
 
     #[inline(always)]
     pub fn wrapping_add(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_add_epi32(reg::u(self), reg::u(o))));
+        return U8::new(if I::AVX2 {
+            reg::uo(simd!(_mm256_add_epi32(reg::u(self.0), reg::u(o.0))))
+        } else {
+            halves!(u, self.0, o.0, |a, b| _mm_add_epi32(a, b))
+        });
         #[cfg(not(target_arch = "x86_64"))]
-        {
-            let mut out = self;
-            for i in 0..WIDTH {
-                out.0[i] = self.0[i].wrapping_add(o.0[i]);
-            }
-            out
-        }
+        U8::new(std::array::from_fn(|i| self.0[i].wrapping_add(o.0[i])))
     }
 
     /// Lanes where `self` and `o` are equal.
     #[inline(always)]
-    pub fn eq(self, o: Self) -> Mask {
+    pub fn eq(self, o: Self) -> Mask<I> {
         #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_cmpeq_epi32(reg::u(self), reg::u(o))));
+        return U8::new(if I::AVX2 {
+            reg::uo(simd!(_mm256_cmpeq_epi32(reg::u(self.0), reg::u(o.0))))
+        } else {
+            halves!(u, self.0, o.0, |a, b| _mm_cmpeq_epi32(a, b))
+        });
         #[cfg(not(target_arch = "x86_64"))]
-        self.map2(o, |a, b| if a == b { u32::MAX } else { 0 })
+        U8::new(std::array::from_fn(|i| if self.0[i] == o.0[i] { u32::MAX } else { 0 }))
     }
 
     /// Lanes where `self > o`, both read as `i32`.
     #[inline(always)]
-    pub fn gt_i32(self, o: Self) -> Mask {
+    pub fn gt_i32(self, o: Self) -> Mask<I> {
         #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_cmpgt_epi32(reg::u(self), reg::u(o))));
+        return U8::new(if I::AVX2 {
+            reg::uo(simd!(_mm256_cmpgt_epi32(reg::u(self.0), reg::u(o.0))))
+        } else {
+            halves!(u, self.0, o.0, |a, b| _mm_cmpgt_epi32(a, b))
+        });
         #[cfg(not(target_arch = "x86_64"))]
-        self.map2(o, |a, b| if a as i32 > b as i32 { u32::MAX } else { 0 })
+        U8::new(std::array::from_fn(
+            |i| if self.0[i] as i32 > o.0[i] as i32 { u32::MAX } else { 0 },
+        ))
     }
 
-    #[cfg(not(target_arch = "x86_64"))]
-    #[inline(always)]
-    fn map2(self, o: Self, f: impl Fn(u32, u32) -> u32) -> Self {
-        let mut out = self;
-        for i in 0..WIDTH {
-            out.0[i] = f(self.0[i], o.0[i]);
-        }
-        out
-    }
-
-    /// [`u32::reverse_bits`] per lane: bytes reversed by a shuffle, then the bits of
-    /// each byte through a nibble table.
+    /// [`u32::reverse_bits`] per lane. AVX2: bytes reversed by a shuffle, then the bits
+    /// of each byte through a nibble table. SSE2 has no byte shuffle: bits, pairs and
+    /// nibbles swapped by masks and shifts, then the bytes.
     #[inline(always)]
     pub fn reverse_bits(self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return avx!({
-            let bytes = _mm256_setr_epi8(
-                3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12, 3, 2, 1, 0, 7, 6, 5, 4, 11,
-                10, 9, 8, 15, 14, 13, 12,
-            );
-            let nibbles = _mm256_setr_epi8(
-                0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
-                0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
-            );
-            let low = _mm256_set1_epi8(0x0f);
-            let x = _mm256_shuffle_epi8(reg::u(self), bytes);
-            let lo = _mm256_shuffle_epi8(nibbles, _mm256_and_si256(x, low));
-            let hi = _mm256_shuffle_epi8(nibbles, _mm256_and_si256(_mm256_srli_epi16::<4>(x), low));
-            reg::uo(_mm256_or_si256(_mm256_slli_epi16::<4>(lo), hi))
-        });
-        #[cfg(not(target_arch = "x86_64"))]
-        self.map(u32::reverse_bits)
+        if I::AVX2 {
+            return U8::new(simd!({
+                let bytes = _mm256_setr_epi8(
+                    3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12, 3, 2, 1, 0, 7, 6, 5, 4,
+                    11, 10, 9, 8, 15, 14, 13, 12,
+                );
+                let nibbles = _mm256_setr_epi8(
+                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
+                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
+                );
+                let low = _mm256_set1_epi8(0x0f);
+                let x = _mm256_shuffle_epi8(reg::u(self.0), bytes);
+                let lo = _mm256_shuffle_epi8(nibbles, _mm256_and_si256(x, low));
+                let hi =
+                    _mm256_shuffle_epi8(nibbles, _mm256_and_si256(_mm256_srli_epi16::<4>(x), low));
+                reg::uo(_mm256_or_si256(_mm256_slli_epi16::<4>(lo), hi))
+            }));
+        }
+        #[inline(always)]
+        fn swap<I: Isa>(x: U8<I>, n: u32, m: u32) -> U8<I> {
+            ((x >> n) & U8::splat(m)) | ((x & U8::splat(m)) << n)
+        }
+        let x = swap(swap(swap(self, 1, 0x5555_5555), 2, 0x3333_3333), 4, 0x0f0f_0f0f);
+        (x >> 24) | ((x >> 8) & U8::splat(0xff00)) | ((x << 8) & U8::splat(0x00ff_0000)) | (x << 24)
     }
 
     /// `table[i]` for each lane's `i` (< 256).
     #[inline(always)]
-    pub fn gather(table: &[u32; 256], index: U8) -> Self {
+    pub fn gather(table: &[u32; 256], index: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return reg::uo(avx!(_mm256_i32gather_epi32::<4>(
-            table.as_ptr() as *const i32,
-            reg::u(index)
-        )));
-        #[cfg(not(target_arch = "x86_64"))]
+        if I::AVX2 {
+            return U8::new(reg::uo(simd!(_mm256_i32gather_epi32::<4>(
+                table.as_ptr() as *const i32,
+                reg::u(index.0)
+            ))));
+        }
         index.map(|i| table[i as usize])
     }
 
     /// Each lane read as an integer below 2²⁴, converted exactly to `f32`.
     #[inline(always)]
-    pub fn to_f32(self) -> F8 {
+    pub fn to_f32(self) -> F8<I> {
         F8::from_i32(self)
     }
 
     /// Lane `i` true where bit `i` of `bits` is set.
     #[inline(always)]
-    pub fn from_bitmask(bits: u32) -> Mask {
-        let lane_bits = U8([1, 2, 4, 8, 16, 32, 64, 128]);
+    pub fn from_bitmask(bits: u32) -> Mask<I> {
+        let lane_bits = U8::new([1, 2, 4, 8, 16, 32, 64, 128]);
         (U8::splat(bits) & lane_bits).eq(lane_bits)
     }
 
@@ -405,7 +537,12 @@ impl U8 {
     #[inline(always)]
     pub fn bitmask(self) -> u32 {
         #[cfg(target_arch = "x86_64")]
-        return avx!(_mm256_movemask_ps(_mm256_castsi256_ps(reg::u(self))) as u32);
+        return if I::AVX2 {
+            simd!(_mm256_movemask_ps(_mm256_castsi256_ps(reg::u(self.0))) as u32)
+        } else {
+            let h = reg::f2(F8::<I>::from_bits(self).0);
+            simd!(_mm_movemask_ps(h[0]) | (_mm_movemask_ps(h[1]) << 4)) as u32
+        };
         #[cfg(not(target_arch = "x86_64"))]
         {
             let mut bits = 0;
@@ -420,13 +557,13 @@ impl U8 {
 /// Eight 3-vectors, component by component, with glam's `Vec3` arithmetic (same
 /// operations in the same order, so the same bits).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct V8 {
-    pub x: F8,
-    pub y: F8,
-    pub z: F8,
+pub struct V8<I> {
+    pub x: F8<I>,
+    pub y: F8<I>,
+    pub z: F8<I>,
 }
 
-impl V8 {
+impl<I: Isa> V8<I> {
     #[inline(always)]
     pub fn splat(v: glam::Vec3) -> Self {
         Self { x: F8::splat(v.x), y: F8::splat(v.y), z: F8::splat(v.z) }
@@ -444,17 +581,17 @@ impl V8 {
 
     /// `(x·x') + (y·y') + (z·z')`, as glam.
     #[inline(always)]
-    pub fn dot(self, o: Self) -> F8 {
+    pub fn dot(self, o: Self) -> F8<I> {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
     #[inline(always)]
-    pub fn scale(self, s: F8) -> Self {
+    pub fn scale(self, s: F8<I>) -> Self {
         Self { x: self.x * s, y: self.y * s, z: self.z * s }
     }
 
     #[inline(always)]
-    pub fn div_by(self, s: F8) -> Self {
+    pub fn div_by(self, s: F8<I>) -> Self {
         Self { x: self.x / s, y: self.y / s, z: self.z / s }
     }
 
@@ -465,9 +602,9 @@ impl V8 {
 
     /// glam's `max_element`: `max(x, max(y, z))` with `a > b ? a : b`.
     #[inline(always)]
-    pub fn max_element(self) -> F8 {
+    pub fn max_element(self) -> F8<I> {
         #[inline(always)]
-        fn gt(a: F8, b: F8) -> F8 {
+        fn gt<I: Isa>(a: F8<I>, b: F8<I>) -> F8<I> {
             F8::select(a.gt(b), a, b)
         }
         gt(self.x, gt(self.y, self.z))
@@ -475,12 +612,12 @@ impl V8 {
 
     /// Lanes where all three components equal `o`'s.
     #[inline(always)]
-    pub fn eq(self, o: Self) -> Mask {
+    pub fn eq(self, o: Self) -> Mask<I> {
         self.x.eq(o.x) & self.y.eq(o.y) & self.z.eq(o.z)
     }
 
     #[inline(always)]
-    pub fn select(mask: Mask, a: Self, b: Self) -> Self {
+    pub fn select(mask: Mask<I>, a: Self, b: Self) -> Self {
         Self {
             x: F8::select(mask, a.x, b.x),
             y: F8::select(mask, a.y, b.y),
@@ -489,34 +626,27 @@ impl V8 {
     }
 }
 
-impl Add for V8 {
-    type Output = V8;
-    #[inline(always)]
-    fn add(self, o: V8) -> V8 {
-        V8 { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
-    }
+/// A component-wise operator of `V8`.
+macro_rules! componentwise {
+    ($trait:ident, $f:ident, $op:tt) => {
+        impl<I: Isa> $trait for V8<I> {
+            type Output = V8<I>;
+            #[inline(always)]
+            fn $f(self, o: V8<I>) -> V8<I> {
+                V8 { x: self.x $op o.x, y: self.y $op o.y, z: self.z $op o.z }
+            }
+        }
+    };
 }
 
-impl Sub for V8 {
-    type Output = V8;
-    #[inline(always)]
-    fn sub(self, o: V8) -> V8 {
-        V8 { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
-    }
-}
+componentwise!(Add, add, +);
+componentwise!(Sub, sub, -);
+componentwise!(Mul, mul, *);
 
-impl Mul for V8 {
-    type Output = V8;
+impl<I: Isa> Neg for V8<I> {
+    type Output = V8<I>;
     #[inline(always)]
-    fn mul(self, o: V8) -> V8 {
-        V8 { x: self.x * o.x, y: self.y * o.y, z: self.z * o.z }
-    }
-}
-
-impl Neg for V8 {
-    type Output = V8;
-    #[inline(always)]
-    fn neg(self) -> V8 {
+    fn neg(self) -> V8<I> {
         V8 { x: -self.x, y: -self.y, z: -self.z }
     }
 }
@@ -525,23 +655,19 @@ impl Neg for V8 {
 pub(crate) mod tests {
     use super::*;
 
-    /// Whether this CPU runs the lane types (AVX2), reporting a skip where not.
-    pub(crate) fn runnable(test: &str) -> bool {
+    /// Whether this CPU runs the AVX2 lane types, reporting a skip where not.
+    pub(crate) fn avx2_runnable(test: &str) -> bool {
         if crate::render::integrator::v3::available() {
             return true;
         }
-        let why = "the lane types are AVX2 registers";
+        let why = "the CPU lacks x86-64-v3, so only the SSE2 lanes were checked";
         crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
         false
     }
 
-    #[test]
-    fn lanes_give_the_scalar_bits() {
-        if !runnable("lanes_give_the_scalar_bits") {
-            return;
-        }
-        let a = F8([0.5, -1.25, 3.0, f32::NAN, 0.0, -0.0, 1e-30, 7.5]);
-        let b = F8([2.0, 4.0, -3.0, 1.0, f32::NAN, 0.0, 3.0, -7.5]);
+    fn scalar_bits<I: Isa>() {
+        let a = F8::<I>::new([0.5, -1.25, 3.0, f32::NAN, 0.0, -0.0, 1e-30, 7.5]);
+        let b = F8::<I>::new([2.0, 4.0, -3.0, 1.0, f32::NAN, 0.0, 3.0, -7.5]);
         for (a, b) in [(a, b), (b, a)] {
             for i in 0..WIDTH {
                 let (x, y) = (a.0[i], b.0[i]);
@@ -552,8 +678,15 @@ pub(crate) mod tests {
         for i in 0..WIDTH {
             let (x, y) = (a.0[i], b.0[i]);
             assert_eq!((a + b).0[i].to_bits(), (x + y).to_bits());
+            assert_eq!((a - b).0[i].to_bits(), (x - y).to_bits());
+            assert_eq!((a * b).0[i].to_bits(), (x * y).to_bits());
             assert_eq!((a / b).0[i].to_bits(), (x / y).to_bits());
+            assert_eq!((-a).0[i].to_bits(), (-x).to_bits());
+            assert_eq!(a.sqrt().0[i].to_bits(), x.sqrt().to_bits());
             assert_eq!(a.lt(b).0[i] != 0, x < y);
+            assert_eq!(a.le(b).0[i] != 0, x <= y);
+            assert_eq!(a.gt(b).0[i] != 0, x > y);
+            assert_eq!(a.eq(b).0[i] != 0, x == y);
             let sel = F8::select(a.ge(b), a, b).0[i];
             assert_eq!(sel.to_bits(), if x >= y { x } else { y }.to_bits());
         }
@@ -563,15 +696,17 @@ pub(crate) mod tests {
             assert_eq!(v.dot(v).0[i].to_bits(), s.dot(s).to_bits(), "lane {i}");
             assert_eq!(v.max_element().0[i].to_bits(), s.max_element().to_bits(), "lane {i}");
         }
-        let m = U8::from_bitmask(0b1010_0110);
+        let m = U8::<I>::from_bitmask(0b1010_0110);
         assert_eq!(m.bitmask(), 0b1010_0110);
-        assert_eq!(U8::splat(0x0000_0001).reverse_bits(), U8::splat(0x8000_0000));
-        let x = U8([0, 1, 0x8000_0000, 0xdead_beef, 0x1234_5678, u32::MAX, 7, 0x0f0f_00f1]);
-        let y = U8([3, 0x9e37_79b9, 2, 0x7feb_352d, 0xffff_fffe, 5, 0x8000_0001, 11]);
+        assert_eq!(U8::<I>::splat(0x0000_0001).reverse_bits(), U8::splat(0x8000_0000));
+        let x =
+            U8::<I>::new([0, 1, 0x8000_0000, 0xdead_beef, 0x1234_5678, u32::MAX, 7, 0x0f0f_00f1]);
+        let y = U8::<I>::new([3, 0x9e37_79b9, 2, 0x7feb_352d, 0xffff_fffe, 5, 0x8000_0001, 11]);
         let table: [u32; 256] =
             std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) ^ 0x55);
         let (rev, mul, add) = (x.reverse_bits(), x.wrapping_mul(y), x.wrapping_add(y));
         let (shr, shl, gather) = (x >> 8, x << 3, U8::gather(&table, x & U8::splat(0xff)));
+        let (eq, gt) = (x.eq(y | U8::new([0, 0, 0, 0, 0, u32::MAX, 0, 0])), x.gt_i32(y));
         let unit = (x >> 8).to_f32();
         for i in 0..WIDTH {
             let (a, b) = (x.0[i], y.0[i]);
@@ -580,13 +715,27 @@ pub(crate) mod tests {
             assert_eq!(add.0[i], a.wrapping_add(b), "lane {i}");
             assert_eq!((shr.0[i], shl.0[i]), (a >> 8, a << 3), "lane {i}");
             assert_eq!(gather.0[i], table[(a & 0xff) as usize], "lane {i}");
+            assert_eq!(gt.0[i] != 0, a as i32 > b as i32, "lane {i}");
             assert_eq!(unit.0[i].to_bits(), ((a >> 8) as f32).to_bits(), "lane {i}");
         }
-        let t = F8([0.4, -0.6, 2.9, -3.5, 1e6, -0.0, 7.0, -1e-3]);
+        assert_eq!(eq.bitmask(), 0b0010_0000);
+        let t = F8::<I>::new([0.4, -0.6, 2.9, -3.5, 1e6, -0.0, 7.0, -1e-3]);
         let k = t.trunc_i32();
         for i in 0..WIDTH {
             assert_eq!(k.0[i] as i32, t.0[i] as i32, "lane {i}");
-            assert_eq!(F8::from_i32(k).0[i], (t.0[i] as i32) as f32, "lane {i}");
+            assert_eq!(F8::<I>::from_i32(k).0[i], (t.0[i] as i32) as f32, "lane {i}");
+        }
+    }
+
+    #[test]
+    fn sse2_lanes_give_the_scalar_bits() {
+        scalar_bits::<Sse2>();
+    }
+
+    #[test]
+    fn avx2_lanes_give_the_scalar_bits() {
+        if avx2_runnable("avx2_lanes_give_the_scalar_bits") {
+            scalar_bits::<Avx2>();
         }
     }
 }

@@ -41,7 +41,7 @@ use lights::{AreaLight, Lights};
 
 pub use integrator::{
     area_emission, escaped_emission, pick, primary_hit, primary_hits, render_pixels,
-    render_pixels_counted, stream_kernel, RenderStats, Strategy,
+    render_pixels_counted, render_pixels_in, KernelBuild, RenderStats, Strategy,
 };
 
 /// Why a scene state cannot be rendered with the given assets.

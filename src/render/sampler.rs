@@ -9,7 +9,7 @@
 //! Independent draws ("padding") give an unbounded number of dimensions while each
 //! 4-D group keeps its low discrepancy.
 
-use super::lanes::{F8, U8};
+use super::lanes::{Isa, F8, U8};
 
 /// Number of bits in a Sobol direction vector.
 const BITS: usize = 32;
@@ -197,11 +197,15 @@ impl SampleStream {
 /// [`SampleStream::next4`] of eight streams at once, each at its own draw: the same
 /// integer steps lane by lane (so the same values), for the stream kernel.
 #[inline(always)]
-pub(crate) fn next4_lanes(pixel_seed: U8, index_reversed: U8, draw: U8) -> [F8; 4] {
+pub(crate) fn next4_lanes<I: Isa>(
+    pixel_seed: U8<I>,
+    index_reversed: U8<I>,
+    draw: U8<I>,
+) -> [F8<I>; 4] {
     // Functions, not closures: a closure called several times may be outlined, and
     // outside the v3 build's function its lane intrinsics would not inline.
     #[inline(always)]
-    fn mix(x: U8) -> U8 {
+    fn mix<I: Isa>(x: U8<I>) -> U8<I> {
         let x = x ^ (x >> 16);
         let x = x.wrapping_mul(U8::splat(0x7feb_352d));
         let x = x ^ (x >> 15);
@@ -209,7 +213,7 @@ pub(crate) fn next4_lanes(pixel_seed: U8, index_reversed: U8, draw: U8) -> [F8; 
         x ^ (x >> 16)
     }
     #[inline(always)]
-    fn owen(mut x: U8, seed: U8) -> U8 {
+    fn owen<I: Isa>(mut x: U8<I>, seed: U8<I>) -> U8<I> {
         x = x ^ x.wrapping_mul(U8::splat(0x3d20_adea));
         x = x.wrapping_add(seed);
         x = x.wrapping_mul((seed >> 16) | U8::splat(1));
@@ -218,11 +222,11 @@ pub(crate) fn next4_lanes(pixel_seed: U8, index_reversed: U8, draw: U8) -> [F8; 
         x.reverse_bits()
     }
     #[inline(always)]
-    fn unit(x: U8) -> F8 {
+    fn unit<I: Isa>(x: U8<I>) -> F8<I> {
         (x >> 8).to_f32() * F8::splat(1.0 / 16_777_216.0)
     }
     #[inline(always)]
-    fn sobol(i: U8, dim: usize) -> U8 {
+    fn sobol<I: Isa>(i: U8<I>, dim: usize) -> U8<I> {
         let t = &TABLES[dim];
         let byte = U8::splat(0xff);
         U8::gather(&t[0], i & byte)
@@ -244,7 +248,7 @@ pub(crate) fn next4_lanes(pixel_seed: U8, index_reversed: U8, draw: U8) -> [F8; 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::lanes::WIDTH;
+    use crate::render::lanes::{Avx2, Sse2, WIDTH};
 
     /// Plain Sobol value by the defining XOR over set bits.
     fn sobol_slow(index: u32, dim: usize) -> u32 {
@@ -304,11 +308,7 @@ mod tests {
         }
     }
 
-    #[test]
-    fn eight_lanes_draw_what_eight_streams_draw() {
-        if !crate::render::lanes::tests::runnable("eight_lanes_draw_what_eight_streams_draw") {
-            return;
-        }
+    fn eight_lanes_draw<I: Isa>() {
         let mut streams: [SampleStream; WIDTH] =
             std::array::from_fn(|l| SampleStream::new(9, 4, 100 + l as u32 * 37, l as u32 * 3));
         for (l, stream) in streams.iter_mut().enumerate() {
@@ -316,7 +316,8 @@ mod tests {
                 stream.next4();
             }
         }
-        let lanes = |f: fn(&SampleStream) -> u32| U8(std::array::from_fn(|l| f(&streams[l])));
+        let lanes =
+            |f: fn(&SampleStream) -> u32| U8::<I>::new(std::array::from_fn(|l| f(&streams[l])));
         let got =
             next4_lanes(lanes(|s| s.pixel_seed), lanes(|s| s.index_reversed), lanes(|s| s.draw));
         for (l, s) in streams.iter_mut().enumerate() {
@@ -324,6 +325,19 @@ mod tests {
             for k in 0..4 {
                 assert_eq!(got[k].0[l].to_bits(), want[k].to_bits(), "lane {l} dimension {k}");
             }
+        }
+    }
+
+    #[test]
+    fn eight_sse2_lanes_draw_what_eight_streams_draw() {
+        eight_lanes_draw::<Sse2>();
+    }
+
+    #[test]
+    fn eight_avx2_lanes_draw_what_eight_streams_draw() {
+        let test = "eight_avx2_lanes_draw_what_eight_streams_draw";
+        if crate::render::lanes::tests::avx2_runnable(test) {
+            eight_lanes_draw::<Avx2>();
         }
     }
 

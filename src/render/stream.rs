@@ -53,7 +53,7 @@ use super::integrator::{
     arrive, camera_ray, scatter, trace, PathState, RenderStats, ShadowRay, Strategy, Surface,
     EMPTY_SAMPLE, RR_START_DEPTH,
 };
-use super::lanes::{Mask, F8, U8, V8, WIDTH};
+use super::lanes::{Isa, Mask, F8, U8, V8, WIDTH};
 use super::lights::Lights;
 use super::sampler::{next4_lanes, SampleStream};
 use super::trig::sin_cos_lanes;
@@ -65,37 +65,37 @@ const CHUNK: usize = 256;
 
 /// Eight paths in flight, lane by lane.
 #[derive(Default)]
-struct Group {
-    o: V8,
-    d: V8,
-    throughput: V8,
-    indirect: V8,
-    prev_pdf: F8,
-    depth: U8,
+struct Group<I> {
+    o: V8<I>,
+    d: V8<I>,
+    throughput: V8<I>,
+    indirect: V8<I>,
+    prev_pdf: F8<I>,
+    depth: U8<I>,
     /// The sample streams' fields ([`SampleStream`]).
-    seed: U8,
-    index: U8,
-    draw: U8,
+    seed: U8<I>,
+    index: U8<I>,
+    draw: U8<I>,
     /// Lanes whose previous bounce was a delta choice (camera rays count as one).
     prev_delta: u32,
     /// The diffuse vertex each lane of the vector stage scatters at: position, geometric
     /// and shading normals (front side), albedo.
-    p: V8,
-    ng: V8,
-    ns: V8,
-    color: V8,
+    p: V8<I>,
+    ng: V8<I>,
+    ns: V8<I>,
+    color: V8<I>,
     /// Pending shadow rays (lanes in `shadow`), traced with the lane's next ray.
-    sh_o: V8,
-    sh_d: V8,
-    sh_tmax: F8,
-    sh_c: V8,
+    sh_o: V8<I>,
+    sh_d: V8<I>,
+    sh_tmax: F8<I>,
+    sh_c: V8<I>,
     shadow: u32,
     /// Job (pixel × spp + sample) and G-buffer values of each lane's path.
     job: [usize; WIDTH],
     out: [PixelSample; WIDTH],
 }
 
-impl Group {
+impl<I: Isa> Group<I> {
     /// Lane `l`'s path state.
     #[inline(always)]
     fn path(&self, l: usize) -> PathState {
@@ -175,7 +175,7 @@ pub(super) fn render<L: Lanes>(
     let mut stats = RenderStats::default();
     // (reflected, emission) of each sample of the chunk, by (pixel, sample index).
     let mut sums = Vec::with_capacity(CHUNK * spp);
-    let mut g = Group::default();
+    let mut g = Group::<L::Simd>::default();
     for (c, chunk) in pixels.chunks(CHUNK).enumerate() {
         let gbuffer = &mut out[c * CHUNK..c * CHUNK + chunk.len()];
         sums.clear();
@@ -280,7 +280,7 @@ pub(super) fn render<L: Lanes>(
 fn finish<L: Lanes>(
     lanes: L,
     scene: &RenderScene,
-    g: &mut Group,
+    g: &mut Group<L::Simd>,
     l: usize,
     sums: &mut [(Vec3, Vec3)],
     gbuffer: &mut [PixelSample],
@@ -306,7 +306,7 @@ fn finish<L: Lanes>(
 fn arrive_lane<'a, L: Lanes>(
     lanes: L,
     scene: &'a RenderScene,
-    g: &mut Group,
+    g: &mut Group<L::Simd>,
     l: usize,
     max_depth: u32,
     nee: bool,
@@ -324,9 +324,9 @@ fn arrive_lane<'a, L: Lanes>(
 /// [`super::integrator::scatter`] in lane `l` (a vertex the vector stage does not
 /// handle): false when the path ends.
 #[inline(always)]
-fn scatter_lane(
+fn scatter_lane<I: Isa>(
     scene: &RenderScene,
-    g: &mut Group,
+    g: &mut Group<I>,
     l: usize,
     surface: &Surface,
     albedo: Vec3,
@@ -347,7 +347,7 @@ fn scatter_lane(
 
 /// [`super::microfacet::Frame`] of eight normals: tangents `s`, `t`.
 #[inline(always)]
-fn frame(n: V8) -> (V8, V8) {
+fn frame<I: Isa>(n: V8<I>) -> (V8<I>, V8<I>) {
     let one = F8::splat(1.0);
     let sign = F8::from_bits(one.to_bits() | (n.z.to_bits() & U8::splat(0x8000_0000)));
     let a = -one / (sign + n.z);
@@ -359,14 +359,14 @@ fn frame(n: V8) -> (V8, V8) {
 
 /// [`super::integrator::offset`] in lanes.
 #[inline(always)]
-fn offset(p: V8, ng: V8, dir: V8) -> V8 {
+fn offset<I: Isa>(p: V8<I>, ng: V8<I>, dir: V8<I>) -> V8<I> {
     let eps = F8::splat(1e-4) * (F8::splat(1.0) + p.abs().max_element());
     V8::select(ng.dot(dir).ge(F8::splat(0.0)), p + ng.scale(eps), p - ng.scale(eps))
 }
 
 /// [`super::microfacet::cosine_hemisphere`] in lanes.
 #[inline(always)]
-fn cosine_hemisphere(u1: F8, u2: F8) -> V8 {
+fn cosine_hemisphere<I: Isa>(u1: F8<I>, u2: F8<I>) -> V8<I> {
     use std::f32::consts::PI;
     let (one, zero) = (F8::splat(1.0), F8::splat(0.0));
     let (ax, ay) = (F8::splat(2.0) * u1 - one, F8::splat(2.0) * u2 - one);
@@ -386,18 +386,28 @@ fn cosine_hemisphere(u1: F8, u2: F8) -> V8 {
 
 /// Power heuristic with β = 2 in lanes.
 #[inline(always)]
-fn mis8(a: F8, b: F8) -> F8 {
+fn mis8<I: Isa>(a: F8<I>, b: F8<I>) -> F8<I> {
     let (a2, b2) = (a * a, b * b);
     let zero = F8::splat(0.0);
     F8::select((a2 + b2).gt(zero), a2 / (a2 + b2), zero)
 }
 
+/// Eight lanes' light samples.
+struct LightSamples<I> {
+    wi: V8<I>,
+    dist: F8<I>,
+    radiance: V8<I>,
+    /// Solid-angle pdf.
+    pdf: F8<I>,
+    /// Lanes where a sample was drawn.
+    sampled: Mask<I>,
+}
+
 /// Light samples of eight lanes in a scene lit by area emitters only, as
 /// [`super::lights::Lights::sample`] draws them: an emitter by power, then a point on
-/// it. Returns the direction, distance, radiance, solid-angle pdf and whether a sample
-/// was drawn.
+/// it.
 #[inline(always)]
-fn sample_area_lanes(lights: &Lights, p: V8, u_light: &[F8; 4]) -> (V8, F8, V8, F8, Mask) {
+fn sample_area_lanes<I: Isa>(lights: &Lights, p: V8<I>, u_light: &[F8<I>; 4]) -> LightSamples<I> {
     let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
     let mut v0 = V8::default();
     let mut e1 = V8::default();
@@ -426,19 +436,19 @@ fn sample_area_lanes(lights: &Lights, p: V8, u_light: &[F8; 4]) -> (V8, F8, V8, 
     let sampled = !(cos_light.le(zero) | dist2.eq(zero));
     let per_area = (radiance.x + radiance.y + radiance.z) / F8::splat(lights.area_power);
     let light_pdf = F8::splat(lights.strategy_pmf) * per_area * dist2 / cos_light;
-    (wi, dist, radiance, light_pdf, sampled)
+    LightSamples { wi, dist, radiance, pdf: light_pdf, sampled }
 }
 
 /// The same for the `group` lanes of a scene with other lights (the sun, the sky,
 /// point lights, or several kinds): [`super::lights::Lights::sample`] lane by lane,
 /// whose choice among strategies and their sampling are data-dependent.
 #[inline(always)]
-fn sample_lights_per_lane(
+fn sample_lights_per_lane<I: Isa>(
     lights: &Lights,
-    p: V8,
-    u_light: &[F8; 4],
+    p: V8<I>,
+    u_light: &[F8<I>; 4],
     group: u32,
-) -> (V8, F8, V8, F8, Mask) {
+) -> LightSamples<I> {
     let (mut wi, mut dist, mut radiance) = (V8::default(), F8::splat(0.0), V8::default());
     let (mut pdf, mut sampled) = (F8::splat(0.0), 0u32);
     let mut left = group;
@@ -454,14 +464,19 @@ fn sample_lights_per_lane(
             sampled |= 1 << l;
         }
     }
-    (wi, dist, radiance, pdf, U8::from_bitmask(sampled))
+    LightSamples { wi, dist, radiance, pdf, sampled: U8::from_bitmask(sampled) }
 }
 
 /// Next-event estimation and cosine-weighted continuation of the `group` lanes, all at
 /// diffuse vertices; returns the lanes whose paths ended (their pending shadow rays
 /// still to be traced).
 #[inline(always)]
-fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u64) -> u32 {
+fn scatter_diffuse<I: Isa>(
+    scene: &RenderScene,
+    g: &mut Group<I>,
+    group: u32,
+    rays: &mut u64,
+) -> u32 {
     use std::f32::consts::FRAC_1_PI;
     let lights = &scene.lights;
     let zero = F8::splat(0.0);
@@ -488,7 +503,7 @@ fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u6
     let p = g.p;
     let color = g.color;
 
-    let (wi, dist, radiance, light_pdf, sampled) = if lights.area_only() {
+    let LightSamples { wi, dist, radiance, pdf: light_pdf, sampled } = if lights.area_only() {
         sample_area_lanes(lights, p, &u_light)
     } else {
         sample_lights_per_lane(lights, p, &u_light, group)
@@ -531,7 +546,7 @@ fn scatter_diffuse(scene: &RenderScene, g: &mut Group, group: u32, rays: &mut u6
     let rq = throughput.max_element().min(F8::splat(0.95));
     let killed = roulette & u[3].ge(rq);
     throughput = V8::select(roulette, throughput.div_by(rq), throughput);
-    let live: Mask = alive & !killed & !throughput.eq(V8::default());
+    let live: Mask<I> = alive & !killed & !throughput.eq(V8::default());
 
     g.draw = U8::select(gm, g.draw.wrapping_add(U8::splat(2)), g.draw);
     g.throughput = V8::select(gm, throughput, g.throughput);

@@ -7,7 +7,7 @@
 //! then degree-7 and degree-8 polynomials on |r| ≤ π/4; about 1e-7 absolute error, and
 //! the same bits in every build, as every operation is a single IEEE add or multiply.
 
-use super::lanes::{F8, U8};
+use super::lanes::{Isa, F8, U8};
 
 /// (sin x, cos x) for |x| up to a few thousand (the kernel's angles are within ±2π).
 #[inline(always)]
@@ -36,7 +36,7 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
 
 /// [`sin_cos`] of eight lanes: the same operations lane by lane, so the same bits.
 #[inline(always)]
-pub fn sin_cos_lanes(x: F8) -> (F8, F8) {
+pub fn sin_cos_lanes<I: Isa>(x: F8<I>) -> (F8<I>, F8<I>) {
     const FRAC_2_PI: f32 = std::f32::consts::FRAC_2_PI;
     const P1: f32 = 1.570_312_5;
     const P2: f32 = 4.837_513e-4;
@@ -65,7 +65,7 @@ pub fn sin_cos_lanes(x: F8) -> (F8, F8) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::lanes::WIDTH;
+    use crate::render::lanes::{Avx2, Sse2, WIDTH};
 
     #[test]
     fn matches_double_precision_sin_and_cos() {
@@ -85,18 +85,26 @@ mod tests {
         assert!(s.abs() < 1e-7 && (c + 1.0).abs() < 1e-7);
     }
 
-    #[test]
-    fn eight_lanes_give_the_scalar_bits() {
-        if !crate::render::lanes::tests::runnable("eight_lanes_give_the_scalar_bits") {
-            return;
-        }
+    fn eight_lanes<I: Isa>() {
         for i in -400..400 {
-            let x = F8(std::array::from_fn(|l| (i * 8 + l as i32) as f32 * 0.0123));
+            let x = F8::<I>::new(std::array::from_fn(|l| (i * 8 + l as i32) as f32 * 0.0123));
             let (s, c) = sin_cos_lanes(x);
             for l in 0..WIDTH {
                 let (es, ec) = sin_cos(x.0[l]);
                 assert_eq!((s.0[l].to_bits(), c.0[l].to_bits()), (es.to_bits(), ec.to_bits()));
             }
+        }
+    }
+
+    #[test]
+    fn eight_sse2_lanes_give_the_scalar_bits() {
+        eight_lanes::<Sse2>();
+    }
+
+    #[test]
+    fn eight_avx2_lanes_give_the_scalar_bits() {
+        if crate::render::lanes::tests::avx2_runnable("eight_avx2_lanes_give_the_scalar_bits") {
+            eight_lanes::<Avx2>();
         }
     }
 }

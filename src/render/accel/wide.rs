@@ -33,12 +33,14 @@ use obvhs::cwbvh::CwBvh;
 
 use super::triangle::TriEdges;
 
-/// Which instructions the node test may use: [`Sse`] on every x86-64, [`Avx`] (one
-/// eight-lane register per plane) only where the CPU has AVX, which its constructor
-/// checks. Both give the same bits.
+/// Which instructions the node test (and the stream kernel's lanes) may use: [`Sse`] on
+/// every x86-64, [`Avx`] (one eight-lane register per plane) only where the CPU has AVX
+/// and AVX2, which its constructor checks. Both give the same bits.
 pub trait Lanes: Copy {
     /// Whether node tests run on eight-lane AVX registers.
     const AVX: bool;
+    /// The stream kernel's lane types in this build ([`crate::render::lanes`]).
+    type Simd: crate::render::lanes::Isa;
 }
 
 /// Node tests in two four-lane halves (every x86-64; scalar elsewhere).
@@ -47,24 +49,28 @@ pub struct Sse;
 
 impl Lanes for Sse {
     const AVX: bool = false;
+    type Simd = crate::render::lanes::Sse2;
 }
 
-/// Node tests in one eight-lane AVX register per plane: only a CPU with AVX has one.
+/// Node tests in one eight-lane AVX register per plane: only a CPU with AVX and AVX2 has
+/// one (its lanes' integer operations are AVX2).
 #[derive(Clone, Copy, Debug)]
 pub struct Avx(());
 
 impl Lanes for Avx {
     const AVX: bool = true;
+    type Simd = crate::render::lanes::Avx2;
 }
 
 impl Avx {
-    /// The token, where this CPU has AVX.
+    /// The token, where this CPU has AVX and AVX2.
     #[cfg(target_arch = "x86_64")]
     pub fn detect() -> Option<Self> {
-        std::is_x86_feature_detected!("avx").then_some(Self(()))
+        let avx2 = std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2");
+        avx2.then_some(Self(()))
     }
 
-    /// The token, where this CPU has AVX (never, off x86-64).
+    /// The token, where this CPU has AVX and AVX2 (never, off x86-64).
     #[cfg(not(target_arch = "x86_64"))]
     pub fn detect() -> Option<Self> {
         None

@@ -14,7 +14,7 @@ use gridlight_actors::state::SceneState;
 use serde::Serialize;
 
 use crate::assets::Assets;
-use crate::render::{render_pixels_counted, stream_kernel, RenderError, RenderScene, Strategy};
+use crate::render::{render_pixels_in, KernelBuild, RenderError, RenderScene, Strategy};
 use crate::simgrid::cost::thread_cpu_seconds;
 
 /// The settings of one benchmark run.
@@ -26,11 +26,13 @@ pub struct TraceSettings {
     pub max_depth: u32,
     /// Timed repetitions; the median is reported.
     pub runs: u32,
+    /// The kernel build that renders (one this CPU runs).
+    pub build: KernelBuild,
 }
 
 impl Default for TraceSettings {
     fn default() -> Self {
-        Self { width: 640, height: 480, spp: 4, max_depth: 5, runs: 3 }
+        Self { width: 640, height: 480, spp: 4, max_depth: 5, runs: 3, build: KernelBuild::best() }
     }
 }
 
@@ -81,12 +83,13 @@ pub struct TraceReport {
     pub node_lane_occupancy: f64,
     /// Share of the four lanes of a leaf's triangle test that hold a triangle.
     pub leaf_lane_occupancy: f64,
-    /// `stream` (eight paths in lanes, x86-64-v3 CPUs) or `one-path`.
-    pub kernel: &'static str,
-    /// Stream kernel: share of the eight lanes that held a vertex each time its vector
+    /// The kernel build that rendered: `x86-64-v3` (paths in AVX2 lanes) or `baseline`
+    /// (SSE2 lanes, every x86-64 CPU).
+    pub build: &'static str,
+    /// Share of the eight lanes that held a vertex each time the stream kernel's vector
     /// shading stage ran (null where the stage never ran).
     pub vector_lane_occupancy: Option<f64>,
-    /// Stream kernel: share of path vertices shaded by the vector stage rather than the
+    /// Share of path vertices shaded by the vector stage rather than the
     /// one-path step in their lane (glossy, glass and conductor vertices; sun, sky and
     /// point lights).
     pub vector_vertex_share: Option<f64>,
@@ -108,7 +111,9 @@ pub fn bench_scene(
     let mut cpu = Vec::new();
     for run in 0..settings.runs.max(1) {
         let (start, start_cpu) = (Instant::now(), thread_cpu_seconds());
-        let stats = render_pixels_counted(&scene, run as u64, &pixels, &mut out, Strategy::NeeMis);
+        let frame = run as u64;
+        let stats =
+            render_pixels_in(settings.build, &scene, frame, &pixels, &mut out, Strategy::NeeMis);
         runs.push((start.elapsed().as_secs_f64(), stats));
         cpu.push((thread_cpu_seconds() - start_cpu, stats));
     }
@@ -134,7 +139,7 @@ pub fn bench_scene(
         runs: settings.runs.max(1),
         node_lane_occupancy: lanes.node_occupancy(),
         leaf_lane_occupancy: lanes.leaf_occupancy(),
-        kernel: if stream_kernel() { "stream" } else { "one-path" },
+        build: settings.build.name(),
         vector_lane_occupancy: stats.vector_lane_occupancy(),
         vector_vertex_share: stats.vector_vertex_share(),
     })
@@ -155,7 +160,14 @@ mod tests {
     #[test]
     fn settings_replace_resolution_samples_and_depth_only() {
         let (_, state) = cornell_box(640, 480);
-        let s = TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1 };
+        let s = TraceSettings {
+            width: 8,
+            height: 6,
+            spp: 2,
+            max_depth: 3,
+            runs: 1,
+            ..Default::default()
+        };
         let applied = s.applied_to(&state);
         assert_eq!((applied.resolution.width, applied.resolution.height), (8, 6));
         assert_eq!((applied.render.spp, applied.render.max_depth), (2, 3));
@@ -165,41 +177,40 @@ mod tests {
     #[test]
     fn report_counts_every_sample_and_at_least_one_ray_each() {
         let (assets, state) = cornell_box(640, 480);
-        let settings = TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1 };
-        let r = bench_scene("cornell-box", assets, &state, settings).unwrap();
-        assert_eq!(r.samples, 8 * 6 * 2);
-        assert!(r.rays >= r.samples && r.rays <= r.samples * 2 * 3);
-        assert_eq!(r.triangles, 36);
-        assert!(r.samples_per_second_per_core > 0.0);
-        assert!(r.cpu_seconds > 0.0 && r.samples_per_cpu_second > 0.0);
-        assert!(r.rays_per_cpu_second >= r.samples_per_cpu_second);
-        // 36 triangles: leaves hold one to three of them, nodes at least two children.
-        assert!(r.leaf_lane_occupancy > 0.25 && r.leaf_lane_occupancy <= 0.75);
-        assert!(r.node_lane_occupancy >= 0.25 && r.node_lane_occupancy <= 1.0);
-        if stream_kernel() {
+        let builds = [KernelBuild::Baseline, KernelBuild::V3];
+        for build in builds.into_iter().filter(|b| b.available()) {
+            let settings =
+                TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1, build };
+            let r = bench_scene("cornell-box", assets.clone(), &state, settings).unwrap();
+            assert_eq!(r.samples, 8 * 6 * 2);
+            assert!(r.rays >= r.samples && r.rays <= r.samples * 2 * 3);
+            assert_eq!(r.triangles, 36);
+            assert!(r.samples_per_second_per_core > 0.0);
+            assert!(r.cpu_seconds > 0.0 && r.samples_per_cpu_second > 0.0);
+            assert!(r.rays_per_cpu_second >= r.samples_per_cpu_second);
+            // 36 triangles: leaves hold one to three of them, nodes at least two children.
+            assert!(r.leaf_lane_occupancy > 0.25 && r.leaf_lane_occupancy <= 0.75);
+            assert!(r.node_lane_occupancy >= 0.25 && r.node_lane_occupancy <= 1.0);
             // Every vertex of the Cornell box is diffuse and area-lit: all take the vector
             // stage, whose lanes drain only at the end of the 96 paths.
-            assert_eq!((r.kernel, r.vector_vertex_share), ("stream", Some(1.0)));
+            assert_eq!((r.build, r.vector_vertex_share), (build.name(), Some(1.0)));
             let occupancy = r.vector_lane_occupancy.unwrap();
             assert!(occupancy > 0.5 && occupancy <= 1.0, "{occupancy}");
-        } else {
-            assert_eq!(r.kernel, "one-path");
-            assert_eq!((r.vector_lane_occupancy, r.vector_vertex_share), (None, None));
-        }
-        let json = serde_json::to_value(&r).unwrap();
-        for key in [
-            "scene",
-            "samples_per_second_per_core",
-            "rays_per_second_per_core",
-            "rays_per_cpu_second",
-            "triangles",
-            "node_lane_occupancy",
-            "leaf_lane_occupancy",
-            "kernel",
-            "vector_lane_occupancy",
-            "vector_vertex_share",
-        ] {
-            assert!(json.get(key).is_some(), "missing {key}");
+            let json = serde_json::to_value(&r).unwrap();
+            for key in [
+                "scene",
+                "samples_per_second_per_core",
+                "rays_per_second_per_core",
+                "rays_per_cpu_second",
+                "triangles",
+                "node_lane_occupancy",
+                "leaf_lane_occupancy",
+                "build",
+                "vector_lane_occupancy",
+                "vector_vertex_share",
+            ] {
+                assert!(json.get(key).is_some(), "missing {key}");
+            }
         }
     }
 }
