@@ -540,9 +540,8 @@ pub fn render_pixels_in(
     }
 }
 
-/// The kernel compiled for x86-64-v3: AVX2 lanes for paths (about 1.4× the baseline
-/// build's samples per second), node tests in one eight-lane AVX register
-/// ([`crate::render::accel::Avx`]), TZCNT/LZCNT in BVH traversal.
+/// The kernel compiled for x86-64-v3: paths in AVX2 lanes, node tests in one eight-lane
+/// AVX register ([`crate::render::accel::Avx`]), TZCNT/LZCNT in BVH traversal.
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod v3 {
     use super::*;

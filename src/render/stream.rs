@@ -1,6 +1,9 @@
 //! The stream kernel: eight camera paths advance side by side, their state held lane by
 //! lane (structure of arrays), and the shading of their diffuse vertices runs as
-//! eight-lane AVX2 code. It is the x86-64-v3 build's kernel for every scene.
+//! eight-lane vector code: AVX2 registers in the x86-64-v3 build, two SSE2 halves in the
+//! baseline build ([`super::lanes`]). It is every build's kernel for every scene; the
+//! one-path kernel it replaced (`integrator::trace_path`) is kept only as the reference
+//! the tests compare it with.
 //!
 //! Three designs were on the table. pbrt-v4's wavefront integrator keeps millions of
 //! paths in per-stage queues (camera rays, closest hit, per-material shading, shadow
@@ -37,9 +40,9 @@
 //!
 //! An earlier version kept each lane's state as a scalar struct and gathered it into
 //! vectors per stage: the gathers cost what the vector stage saved (parity on the Cornell
-//! box). Here the state stays in lanes, and the lane types are AVX registers
-//! ([`super::lanes`]), so the kernel runs in the x86-64-v3 build only; the baseline
-//! build traces one path at a time with the same steps.
+//! box). Here the state stays in lanes, and the lane types are registers of the build's
+//! instruction set ([`super::lanes`]): the kernel is generic over the build's
+//! [`Lanes`] token, whose `Simd` type names them.
 //!
 //! The pictures are the one-path kernel's, bit for bit: every lane computes the scalar
 //! code's operations in its order, each path keeps its own sample stream, and the samples
