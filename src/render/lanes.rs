@@ -277,12 +277,7 @@ impl<I: Isa> F8<I> {
 
     #[inline(always)]
     pub fn map(self, f: impl Fn(f32) -> f32) -> Self {
-        // A loop, not `[T; N]::map`, which was left out of line in the baseline build.
-        let mut out = self;
-        for x in &mut out.0 {
-            *x = f(*x);
-        }
-        out
+        Self::new(each(self.0, f))
     }
 
     compare!(lt, <, _CMP_LT_OQ, _mm_cmplt_ps);
@@ -414,12 +409,7 @@ impl<I: Isa> U8<I> {
 
     #[inline(always)]
     pub fn map(self, f: impl Fn(u32) -> u32) -> Self {
-        // As `F8::map`.
-        let mut out = self;
-        for x in &mut out.0 {
-            *x = f(*x);
-        }
-        out
+        Self::new(each(self.0, f))
     }
 
     /// `mask ? a : b` per lane, by bits.
@@ -570,6 +560,15 @@ impl<I: Isa> U8<I> {
             bits
         }
     }
+}
+
+/// `f` of each lane, as a loop: `[T; N]::map` was left out of line in the baseline build.
+#[inline(always)]
+fn each<T: Copy>(mut x: [T; WIDTH], f: impl Fn(T) -> T) -> [T; WIDTH] {
+    for v in &mut x {
+        *v = f(*v);
+    }
+    x
 }
 
 /// The bits of eight `f32`s ([`f32::to_bits`] of each, with no call that might stay out
