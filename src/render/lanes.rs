@@ -21,9 +21,11 @@
 //! vectorisation of eight-element loops gave half-width code with spills in the v3
 //! build (0.77× the intrinsics' samples per second on the Cornell box).
 //!
-//! CPUs with AVX-512 run the `Avx2` lanes: a sixteen-lane set was not written, as no
-//! AVX-512 machine was at hand to test its bits and measure whether sixteen paths in
-//! flight (twice the per-lane state, more divergence per vector stage) pay.
+//! CPUs with AVX-512 run the `Avx2` lanes in the x86-64-v4 build (the same code with
+//! AVX-512 enabled, so EVEX encoding, 32 registers and mask registers). A sixteen-lane set
+//! was not written: the lane width is a constant of every stage's code, and the only
+//! AVX-512 machine at hand (lent for fifteen minutes) could test and measure a build, not
+//! a rewrite.
 //!
 //! Comparisons return a [`Mask`] of all-ones or all-zero lanes, and [`F8::select`] picks
 //! by bits, so branches of the scalar code become blends of both sides.
