@@ -14,6 +14,7 @@ path, GRIDLIGHT_ASSETS). One JSON line per run goes to --log when given.
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -37,13 +38,17 @@ for spec in args.builds:
 if len({b[0] for b in builds}) != len(builds):
     sys.exit("alternate.py: two builds have the same name")
 scenes = [s for s in args.scenes.split(",") if s]
+# The repository's scenes, wherever the script is run from (binaries are relative to the
+# working directory, as the shell gives them).
+scene_dir = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scenes")
 
 runs = {}
 log = open(args.log, "a") if args.log else None
 for r in range(args.rounds):
     for scene in scenes:
         for name, binary, extra in builds:
-            cmd = ["taskset", "-c", args.cpu, binary, "bench", "trace", f"scenes/{scene}.toml",
+            cmd = ["taskset", "-c", args.cpu, binary, "bench", "trace",
+                   os.path.join(scene_dir, f"{scene}.toml"),
                    "--json", "--runs", str(args.runs), *extra]
             out = subprocess.run(cmd, capture_output=True, text=True)
             if out.returncode != 0:
