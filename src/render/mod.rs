@@ -16,6 +16,7 @@ pub mod accel;
 pub mod bsdf;
 pub mod camera;
 pub mod envmap;
+mod glossy_lanes;
 pub mod gpu;
 pub mod integrator;
 pub mod lanes;

@@ -23,13 +23,15 @@
 //! resolved per lane (materials and textures are data-dependent,
 //! [`super::integrator::arrive`], shared with the one-path kernel); then every lane goes
 //! through one vector stage: both 4-D sample draws, the light sample, the
-//! diffuse BSDF's value, MIS, the shadow ray's set-up, cosine sampling, the throughput
-//! update and Russian roulette. That stage takes every diffuse vertex when next-event
-//! estimation is on; its light sample is vector code where the scene is lit by area
+//! BSDF's value, MIS, the shadow ray's set-up, BSDF sampling, the throughput
+//! update and Russian roulette. That stage takes every diffuse and glossy vertex when
+//! next-event estimation is on (the glossy coat's lobes, [`super::glossy_lanes`], are
+//! computed only in rounds that hold a glossy lane and blended into those lanes); its
+//! light sample is vector code where the scene is lit by area
 //! emitters only and [`super::lights::Lights::sample`] lane by lane otherwise (the sun,
 //! the sky, point lights: which strategy a lane draws is data-dependent, and the rest of
 //! the stage stays vector code: Sponza 1.04×, glossy-glass 1.14×, envmap-object parity
-//! within noise against lanes that took the one-path step there). Glossy, glass and
+//! within noise against lanes that took the one-path step there). Glass and
 //! conductor vertices, and the BSDF-only strategy, take the one-path step
 //! ([`super::integrator::scatter`]) in their lane. Scenes with such vertices run as fast
 //! as with the one-path kernel or a little faster (medians of 5 on an Intel Xeon: bunny
@@ -52,6 +54,8 @@ use glam::{Vec2, Vec3};
 use gridlight_actors::state::MaterialKind;
 
 use super::accel::Lanes;
+use super::bsdf::Bsdf;
+use super::glossy_lanes::Glossy;
 use super::integrator::{
     arrive, camera_ray, scatter, trace, PathState, RenderStats, ShadowRay, Strategy, Surface,
     EMPTY_SAMPLE, RR_START_DEPTH,
@@ -60,7 +64,7 @@ use super::lanes::{Isa, Mask, F8, U8, V8, WIDTH};
 use super::lights::Lights;
 use super::sampler::{next4_lanes, SampleStream};
 use super::trig::sin_cos_lanes;
-use super::{PixelSample, RenderScene};
+use super::{MaterialData, PixelSample, RenderScene};
 
 /// Pixels whose samples all finish before the next pixels start: bounds the per-sample
 /// buffer, at the cost of a ragged tail of lanes per chunk.
@@ -81,12 +85,15 @@ struct Group<I> {
     draw: U8<I>,
     /// Lanes whose previous bounce was a delta choice (camera rays count as one).
     prev_delta: u32,
-    /// The diffuse vertex each lane of the vector stage scatters at: position, geometric
-    /// and shading normals (front side), albedo.
+    /// The vertex each lane of the vector stage scatters at: position, geometric and
+    /// shading normals (front side), albedo, and for glossy ones the coat's roughness
+    /// and index of refraction.
     p: V8<I>,
     ng: V8<I>,
     ns: V8<I>,
     color: V8<I>,
+    alpha: F8<I>,
+    eta: F8<I>,
     /// Pending shadow rays (lanes in `shadow`), traced with the lane's next ray.
     sh_o: V8<I>,
     sh_d: V8<I>,
@@ -188,8 +195,8 @@ pub(super) fn render<L: Lanes>(
         // Lanes holding a path; idle lanes keep stale values, computed on and ignored.
         let mut active = 0u32;
         loop {
-            // Lanes in the vector stage this round.
-            let mut group = 0u32;
+            // Lanes in the vector stage this round, and those of them at glossy vertices.
+            let (mut group, mut glossy) = (0u32, 0u32);
             // Lanes whose ray is to be traced: all those holding a path, then those
             // refilled because their path ended at its hit, so that the vector stage
             // runs on as many lanes as there are paths left.
@@ -225,13 +232,18 @@ pub(super) fn render<L: Lanes>(
                         arrive_lane(lanes, scene, &mut g, l, max_depth, nee, &mut stats.rays);
                     let alive = match arrived {
                         None => false,
-                        Some((surface, albedo))
-                            if nee && surface.material.kind == MaterialKind::Diffuse =>
-                        {
+                        Some((surface, albedo)) if nee && in_vector_stage(surface.material) => {
                             g.p.set_lane(l, surface.p);
                             g.ng.set_lane(l, surface.ng);
                             g.ns.set_lane(l, surface.ns);
                             g.color.set_lane(l, albedo);
+                            let m = surface.material;
+                            if m.kind == MaterialKind::Glossy {
+                                let bsdf = Bsdf::new(m.kind, albedo, m.roughness, m.ior);
+                                g.alpha.0[l] = bsdf.ggx.alpha;
+                                g.eta.0[l] = bsdf.eta;
+                                glossy |= 1 << l;
+                            }
                             group |= 1 << l;
                             true
                         }
@@ -252,7 +264,7 @@ pub(super) fn render<L: Lanes>(
             if group != 0 {
                 stats.vector_stages += 1;
                 stats.vector_vertices += u64::from(group.count_ones());
-                let mut ended = scatter_diffuse(scene, &mut g, group, &mut stats.rays);
+                let mut ended = scatter_vector(scene, &mut g, group, glossy, &mut stats.rays);
                 active &= !ended;
                 while ended != 0 {
                     let l = ended.trailing_zeros() as usize;
@@ -369,7 +381,7 @@ fn offset<I: Isa>(p: V8<I>, ng: V8<I>, dir: V8<I>) -> V8<I> {
 
 /// [`super::microfacet::cosine_hemisphere`] in lanes.
 #[inline(always)]
-fn cosine_hemisphere<I: Isa>(u1: F8<I>, u2: F8<I>) -> V8<I> {
+pub(super) fn cosine_hemisphere<I: Isa>(u1: F8<I>, u2: F8<I>) -> V8<I> {
     use std::f32::consts::PI;
     let (one, zero) = (F8::splat(1.0), F8::splat(0.0));
     let (ax, ay) = (F8::splat(2.0) * u1 - one, F8::splat(2.0) * u2 - one);
@@ -470,14 +482,22 @@ fn sample_lights_per_lane<I: Isa>(
     LightSamples { wi, dist, radiance, pdf, sampled: U8::from_bitmask(sampled) }
 }
 
-/// Next-event estimation and cosine-weighted continuation of the `group` lanes, all at
-/// diffuse vertices; returns the lanes whose paths ended (their pending shadow rays
-/// still to be traced).
+/// Whether a vertex of this material takes the vector stage (with next-event estimation).
 #[inline(always)]
-fn scatter_diffuse<I: Isa>(
+fn in_vector_stage(material: &MaterialData) -> bool {
+    matches!(material.kind, MaterialKind::Diffuse | MaterialKind::Glossy)
+}
+
+/// Next-event estimation and BSDF sampling of the `group` lanes, at diffuse vertices and
+/// at the `glossy` ones among them; returns the lanes whose paths ended (their pending
+/// shadow rays still to be traced). The glossy lobes are computed only in rounds that
+/// have a glossy lane, and blended in there.
+#[inline(always)]
+fn scatter_vector<I: Isa>(
     scene: &RenderScene,
     g: &mut Group<I>,
     group: u32,
+    glossy: u32,
     rays: &mut u64,
 ) -> u32 {
     use std::f32::consts::FRAC_1_PI;
@@ -505,6 +525,9 @@ fn scatter_diffuse<I: Isa>(
     let wo = V8::select(geo, wo2, wo1);
     let p = g.p;
     let color = g.color;
+    let coated = Glossy { alpha: g.alpha, eta: g.eta, color };
+    let glossy_mask = U8::from_bitmask(glossy);
+    let coat = if glossy != 0 { coated.coat_probability(wo) } else { zero };
 
     let LightSamples { wi, dist, radiance, pdf: light_pdf, sampled } = if lights.area_only() {
         sample_area_lanes(lights, p, &u_light)
@@ -512,12 +535,17 @@ fn scatter_diffuse<I: Isa>(
         sample_lights_per_lane(lights, p, &u_light, group)
     };
 
-    // The diffuse BSDF's value and pdf there.
+    // The BSDF's value and pdf there.
     let wl = V8 { x: wi.dot(fs), y: wi.dot(ft), z: wi.dot(fn_) };
     let above = !(wl.z.le(zero) | wo.z.le(zero));
     let cos_pi = wl.z * F8::splat(FRAC_1_PI);
-    let f = V8::select(above, color.scale(cos_pi), V8::default());
-    let bsdf_pdf = F8::select(above, cos_pi, zero);
+    let mut f = V8::select(above, color.scale(cos_pi), V8::default());
+    let mut bsdf_pdf = F8::select(above, cos_pi, zero);
+    if glossy != 0 {
+        let (fg, pdf_g) = coated.eval(wo, wl, coat);
+        f = V8::select(glossy_mask, fg, f);
+        bsdf_pdf = F8::select(glossy_mask, pdf_g, bsdf_pdf);
+    }
     let lit = gm & sampled & !(f.eq(V8::default()) | radiance.eq(V8::default()));
 
     let origin = offset(p, ng, wi);
@@ -537,12 +565,22 @@ fn scatter_diffuse<I: Isa>(
     g.shadow |= lit;
     *rays += lit.count_ones() as u64;
 
-    // Cosine-weighted continuation, then Russian roulette.
-    let alive = !wo.z.le(zero);
-    let wi = cosine_hemisphere(u[1], u[2]);
-    let pdf = wi.z * F8::splat(FRAC_1_PI);
+    // The continuation (cosine-weighted, or the glossy lobes' choice weighted by their
+    // value over their pdf, where that is positive), then Russian roulette.
+    let mut alive = !wo.z.le(zero);
+    let mut wi = cosine_hemisphere(u[1], u[2]);
+    let mut pdf = wi.z * F8::splat(FRAC_1_PI);
+    let mut weight = color;
+    if glossy != 0 {
+        let wg = coated.sample(wo, [u[0], u[1], u[2]], coat, wi);
+        let (fg, pdf_g) = coated.eval(wo, wg, coat);
+        alive = alive & !(glossy_mask & !pdf_g.gt(zero));
+        wi = V8::select(glossy_mask, wg, wi);
+        pdf = F8::select(glossy_mask, pdf_g, pdf);
+        weight = V8::select(glossy_mask, fg.div_by(pdf_g), weight);
+    }
     let dir = fs.scale(wi.x) + ft.scale(wi.y) + fn_.scale(wi.z);
-    throughput = throughput * color;
+    throughput = throughput * weight;
     let o = offset(p, ng, dir);
     let depth = g.depth.wrapping_add(U8::splat(1));
     let roulette = depth.gt_i32(U8::splat(RR_START_DEPTH));

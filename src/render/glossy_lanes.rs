@@ -1,0 +1,237 @@
+//! The glossy BSDF (a GGX coat over a Lambertian base, [`super::bsdf::Bsdf`]) of eight
+//! lanes, for the stream kernel's vector stage ([`super::stream`]).
+//!
+//! Each function is its scalar counterpart in [`super::bsdf`] and [`super::microfacet`],
+//! operation for operation and in the same order, branches turned into blends of both
+//! sides, so that every lane holds the scalar code's bits (tested below against the
+//! scalar functions). Glossy vertices took the one-path step in their lane before
+//! (11 % of the bunny's vertices, 15 % of Sponza's); in the vector stage the bunny and
+//! Sponza render 1.04× as fast (AMD EPYC, paired medians of 15 alternating rounds).
+
+use std::f32::consts::{FRAC_1_PI, PI};
+
+use super::lanes::{Isa, Mask, F8, V8};
+use super::trig::sin_cos_lanes;
+
+/// The glossy lobes' parameters in eight lanes.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Glossy<I> {
+    /// GGX roughness ([`super::microfacet::Ggx::alpha`]).
+    pub alpha: F8<I>,
+    /// The coat's index of refraction.
+    pub eta: F8<I>,
+    /// Base albedo.
+    pub color: V8<I>,
+}
+
+/// `v.normalize()` as glam computes it: `v * (1 / |v|)`.
+#[inline(always)]
+fn normalize<I: Isa>(v: V8<I>) -> V8<I> {
+    v.scale(F8::splat(1.0) / v.dot(v).sqrt())
+}
+
+/// [`super::microfacet::fresnel_dielectric`] in lanes.
+#[inline(always)]
+pub(super) fn fresnel_dielectric<I: Isa>(cos_i: F8<I>, eta: F8<I>) -> F8<I> {
+    let one = F8::splat(1.0);
+    let inside = cos_i.lt(F8::splat(0.0));
+    let cos_i = F8::select(inside, -cos_i, cos_i);
+    let eta = F8::select(inside, one / eta, eta);
+    let sin2_t = (one - cos_i * cos_i).max(F8::splat(0.0)) / (eta * eta);
+    let cos_t = (one - sin2_t).sqrt();
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r = F8::splat(0.5) * (r_parl * r_parl + r_perp * r_perp);
+    F8::select(sin2_t.ge(one), one, r)
+}
+
+/// [`super::microfacet::Ggx::d`] in lanes.
+#[inline(always)]
+fn ggx_d<I: Isa>(alpha: F8<I>, m: V8<I>) -> F8<I> {
+    let one = F8::splat(1.0);
+    let a2 = alpha * alpha;
+    let cos2 = m.z * m.z;
+    let k = cos2 * (a2 - one) + one;
+    F8::select(m.z.le(F8::splat(0.0)), F8::splat(0.0), a2 / (F8::splat(PI) * k * k))
+}
+
+/// Smith Λ(w) ([`super::microfacet::Ggx`]) in lanes.
+#[inline(always)]
+fn lambda<I: Isa>(alpha: F8<I>, w: V8<I>) -> F8<I> {
+    let one = F8::splat(1.0);
+    let cos2 = w.z * w.z;
+    let tan2 = (one - cos2).max(F8::splat(0.0)) / cos2;
+    let l = ((one + alpha * alpha * tan2).sqrt() - one) * F8::splat(0.5);
+    F8::select(cos2.ge(one), F8::splat(0.0), l)
+}
+
+impl<I: Isa> Glossy<I> {
+    /// [`super::bsdf::Bsdf`]'s coat probability: the coat's share of the lobes' albedo.
+    #[inline(always)]
+    pub(super) fn coat_probability(&self, wo: V8<I>) -> F8<I> {
+        let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+        let f = fresnel_dielectric(wo.z, self.eta);
+        let base = (one - f) * self.color.max_element();
+        let p = f / (f + base).max(F8::splat(1e-6));
+        // f32::clamp: NaN stays NaN.
+        let p = F8::select(p.lt(zero), zero, p);
+        F8::select(p.gt(one), one, p)
+    }
+
+    /// `f(wo, wi) · cos θi` and the pdf of sampling `wi`, given the coat probability
+    /// `coat` at `wo` (`Bsdf::eval` of a glossy surface).
+    #[inline(always)]
+    pub(super) fn eval(&self, wo: V8<I>, wi: V8<I>, coat: F8<I>) -> (V8<I>, F8<I>) {
+        let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+        let below = wi.z.le(zero) | wo.z.le(zero);
+        let m = normalize(wo + wi);
+        let d = ggx_d(self.alpha, m);
+        let f_o = fresnel_dielectric(wo.z, self.eta);
+        let (lo, li) = (lambda(self.alpha, wo), lambda(self.alpha, wi));
+        let g2 = one / (one + lo + li);
+        let g1 = one / (one + lo);
+        let four_cos = F8::splat(4.0) * wo.z;
+        let spec = f_o * d * g2 / four_cos;
+        let transmit = (one - f_o) * (one - fresnel_dielectric(wi.z, self.eta));
+        let diffuse = self.color.scale(transmit * wi.z * F8::splat(FRAC_1_PI));
+        let pdf_spec = g1 * d / four_cos;
+        let pdf = coat * pdf_spec + (one - coat) * wi.z * F8::splat(FRAC_1_PI);
+        let value = V8 { x: spec, y: spec, z: spec } + diffuse;
+        (V8::select(below, V8::default(), value), F8::select(below, zero, pdf))
+    }
+
+    /// [`super::microfacet::Ggx::sample_visible`] for `w` above the surface.
+    #[inline(always)]
+    fn sample_visible(&self, w: V8<I>, u1: F8<I>, u2: F8<I>) -> V8<I> {
+        let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+        let a = self.alpha;
+        let vh = normalize(V8 { x: a * w.x, y: a * w.y, z: w.z });
+        let len2 = vh.x * vh.x + vh.y * vh.y;
+        let inv = one / len2.sqrt();
+        let t1 = V8::select(
+            len2.gt(zero),
+            V8 { x: -vh.y * inv, y: vh.x * inv, z: zero * inv },
+            V8 { x: one, y: zero, z: zero },
+        );
+        let t2 = cross(vh, t1);
+        let r = u1.sqrt();
+        let (sin, cos) = sin_cos_lanes(F8::splat(2.0 * PI) * u2);
+        let p1 = r * cos;
+        let s = F8::splat(0.5) * (one + vh.z);
+        let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * (r * sin);
+        let h = (one - p1 * p1 - p2 * p2).max(zero).sqrt();
+        let nh = t1.scale(p1) + t2.scale(p2) + vh.scale(h);
+        normalize(V8 { x: a * nh.x, y: a * nh.y, z: nh.z.max(F8::splat(1e-6)) })
+    }
+
+    /// The sampled direction of `Bsdf::sample` on a glossy surface seen from `wo`
+    /// (above it): the coat's reflection of a visible normal where `u0 < coat`, else
+    /// `diffuse`, the cosine-weighted direction drawn from the same `u1`, `u2`.
+    #[inline(always)]
+    pub(super) fn sample(
+        &self,
+        wo: V8<I>,
+        [u0, u1, u2]: [F8<I>; 3],
+        coat: F8<I>,
+        diffuse: V8<I>,
+    ) -> V8<I> {
+        let m = self.sample_visible(wo, u1, u2);
+        let reflected = m.scale(F8::splat(2.0) * wo.dot(m)) - wo;
+        let on_coat: Mask<I> = u0.lt(coat);
+        V8::select(on_coat, reflected, diffuse)
+    }
+}
+
+/// glam's `cross`.
+#[inline(always)]
+fn cross<I: Isa>(a: V8<I>, b: V8<I>) -> V8<I> {
+    V8 { x: a.y * b.z - b.y * a.z, y: a.z * b.x - b.z * a.x, z: a.x * b.y - b.x * a.y }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Vec2, Vec3};
+    use gridlight_actors::state::MaterialKind;
+
+    use super::*;
+    use crate::render::bsdf::Bsdf;
+    use crate::render::lanes::{Avx2, Sse2, WIDTH};
+    use crate::render::microfacet::cosine_hemisphere;
+
+    /// A small deterministic generator of test inputs in [0, 1).
+    fn uniform(state: &mut u32) -> f32 {
+        *state ^= *state << 13;
+        *state ^= *state >> 17;
+        *state ^= *state << 5;
+        (*state >> 8) as f32 / (1 << 24) as f32
+    }
+
+    fn direction(state: &mut u32) -> Vec3 {
+        let v = Vec3::new(uniform(state), uniform(state), uniform(state)) * 2.0 - Vec3::ONE;
+        v.normalize()
+    }
+
+    fn bits(v: Vec3) -> [u32; 3] {
+        [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()]
+    }
+
+    /// Random surfaces, directions and draws (half of them below the surface, some at
+    /// grazing and normal incidence): every lane must hold the scalar `Bsdf`'s bits.
+    fn scalar_bits<I: Isa>() {
+        let mut state = 0x2545_f491;
+        for round in 0..4000 {
+            let mut lanes = Glossy::<I>::default();
+            let (mut wo, mut wi) = (V8::<I>::default(), V8::<I>::default());
+            let mut u = [F8::<I>::default(); 3];
+            let mut bsdfs = Vec::new();
+            for l in 0..WIDTH {
+                let roughness = [0.0, 0.05, 0.3, 0.7, 1.0][(round + l) % 5];
+                let ior = [1.5, 1.33, 2.4, 1.0][(round / 5 + l) % 4];
+                let color = Vec3::new(uniform(&mut state), uniform(&mut state), 0.5);
+                let b = Bsdf::new(MaterialKind::Glossy, color, roughness, ior);
+                lanes.alpha.0[l] = b.ggx.alpha;
+                lanes.eta.0[l] = b.eta;
+                lanes.color.set_lane(l, color);
+                let mut o = direction(&mut state);
+                if l == 0 {
+                    o = Vec3::Z;
+                }
+                o.z = o.z.abs();
+                wo.set_lane(l, o);
+                wi.set_lane(l, direction(&mut state));
+                for d in &mut u {
+                    d.0[l] = uniform(&mut state);
+                }
+                bsdfs.push(b);
+            }
+            let coat = lanes.coat_probability(wo);
+            let (f, pdf) = lanes.eval(wo, wi, coat);
+            let diffuse = crate::render::stream::cosine_hemisphere(u[1], u[2]);
+            let sampled = lanes.sample(wo, u, coat, diffuse);
+            for (l, b) in bsdfs.iter().enumerate() {
+                let (o, i) = (wo.lane(l), wi.lane(l));
+                let (ef, epdf) = b.eval(o, i);
+                assert_eq!(bits(f.lane(l)), bits(ef), "eval, lane {l}, round {round}");
+                assert_eq!(pdf.0[l].to_bits(), epdf.to_bits(), "pdf, lane {l}, round {round}");
+                let uu = [u[0].0[l], u[1].0[l], u[2].0[l]];
+                assert_eq!(diffuse.lane(l), cosine_hemisphere(Vec2::new(uu[1], uu[2])));
+                // Bsdf::sample returns the direction only where its pdf is positive.
+                if let Some(s) = b.sample(o, uu) {
+                    assert_eq!(bits(sampled.lane(l)), bits(s.wi), "sample, lane {l}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sse2_lanes_give_the_scalar_bits() {
+        scalar_bits::<Sse2>();
+    }
+
+    #[test]
+    fn avx2_lanes_give_the_scalar_bits() {
+        if crate::render::lanes::tests::avx2_runnable("avx2_lanes_give_the_scalar_bits") {
+            scalar_bits::<Avx2>();
+        }
+    }
+}
