@@ -34,6 +34,7 @@ use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 
+use super::large_pages::LargePages;
 use super::triangle::TriEdges;
 
 /// Which instructions the node test (and the stream kernel's lanes) may use: [`Sse`] on
@@ -116,8 +117,9 @@ struct Packet {
 /// The wide BVH of one triangle set (a mesh's BLAS or the flattened small instances).
 #[derive(Default)]
 pub(super) struct WideBvh {
-    nodes: Vec<Node>,
-    packets: Vec<Packet>,
+    /// On huge pages where large ([`LargePages`]): walks read them at random.
+    nodes: LargePages<Node>,
+    packets: LargePages<Packet>,
 }
 
 /// How full a tree's SIMD lanes are: of the eight lanes of every node test, those holding
@@ -506,7 +508,7 @@ impl WideBvh {
     /// Decodes `bvh` (built over `tris`, which are in its leaf order), packing the leaf
     /// children of each node into as few four-lane packets as pays (see [`pack_leaves`]).
     pub(super) fn build(bvh: &CwBvh, tris: &[TriEdges]) -> Self {
-        let mut out = WideBvh { nodes: Vec::with_capacity(bvh.nodes.len()), packets: Vec::new() };
+        let (mut nodes, mut packets) = (Vec::with_capacity(bvh.nodes.len()), Vec::new());
         // Each node's children as (box, reference) before they are laid out.
         let mut lists: Vec<Vec<(Aabb, u32)>> = Vec::with_capacity(bvh.nodes.len());
         for cw in &bvh.nodes {
@@ -554,8 +556,8 @@ impl WideBvh {
                 }
             }
             for (bounds, prims) in pack_leaves(leaves) {
-                out.packets.push(Packet::new(tris, &prims));
-                children.push((bounds, LEAF | (out.packets.len() as u32 - 1)));
+                packets.push(Packet::new(tris, &prims));
+                children.push((bounds, LEAF | (packets.len() as u32 - 1)));
             }
             lists.push(children);
         }
@@ -570,9 +572,9 @@ impl WideBvh {
                 node.child[i] = child;
                 node.valid |= 1 << i;
             }
-            out.nodes.push(node);
+            nodes.push(node);
         }
-        out
+        WideBvh { nodes: LargePages::new(&nodes), packets: LargePages::new(&packets) }
     }
 
     /// How many of this tree's node and leaf lanes hold something.
