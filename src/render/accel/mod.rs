@@ -20,14 +20,12 @@
 //! itself. Large meshes keep the two-level path, so moving them stays cheap.
 //!
 //! Files: `triangle.rs` (the triangle test), `blas.rs` (per mesh), `tlas.rs` (per scene
-//! state), `wide.rs` (the CPU's traversal of meshes and flattened instances, its arrays on huge
-//! pages by `large_pages.rs`), `traverse.rs`
+//! state), `wide.rs` (the CPU's traversal of meshes and flattened instances), `traverse.rs`
 //! (the CWBVH node test and traversal restart of the top level), `export.rs` (both levels
 //! as flat arrays for the GPU path tracer).
 
 mod blas;
 pub mod export;
-mod large_pages;
 mod tlas;
 mod traverse;
 mod triangle;

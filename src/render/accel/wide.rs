@@ -34,7 +34,6 @@ use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 
-use super::large_pages::LargePages;
 use super::triangle::TriEdges;
 
 /// Which instructions the node test (and the stream kernel's lanes) may use: [`Sse`] on
@@ -117,9 +116,8 @@ struct Packet {
 /// The wide BVH of one triangle set (a mesh's BLAS or the flattened small instances).
 #[derive(Default)]
 pub(super) struct WideBvh {
-    /// On huge pages where large ([`LargePages`]): walks read them at random.
-    nodes: LargePages<Node>,
-    packets: LargePages<Packet>,
+    nodes: Vec<Node>,
+    packets: Vec<Packet>,
 }
 
 /// How full a tree's SIMD lanes are: of the eight lanes of every node test, those holding
@@ -508,7 +506,7 @@ impl WideBvh {
     /// Decodes `bvh` (built over `tris`, which are in its leaf order), packing the leaf
     /// children of each node into as few four-lane packets as pays (see [`pack_leaves`]).
     pub(super) fn build(bvh: &CwBvh, tris: &[TriEdges]) -> Self {
-        let (mut nodes, mut packets) = (Vec::with_capacity(bvh.nodes.len()), Vec::new());
+        let mut out = WideBvh { nodes: Vec::with_capacity(bvh.nodes.len()), packets: Vec::new() };
         // Each node's children as (box, reference) before they are laid out.
         let mut lists: Vec<Vec<(Aabb, u32)>> = Vec::with_capacity(bvh.nodes.len());
         for cw in &bvh.nodes {
@@ -556,8 +554,8 @@ impl WideBvh {
                 }
             }
             for (bounds, prims) in pack_leaves(leaves) {
-                packets.push(Packet::new(tris, &prims));
-                children.push((bounds, LEAF | (packets.len() as u32 - 1)));
+                out.packets.push(Packet::new(tris, &prims));
+                children.push((bounds, LEAF | (out.packets.len() as u32 - 1)));
             }
             lists.push(children);
         }
@@ -572,9 +570,9 @@ impl WideBvh {
                 node.child[i] = child;
                 node.valid |= 1 << i;
             }
-            nodes.push(node);
+            out.nodes.push(node);
         }
-        WideBvh { nodes: LargePages::new(&nodes), packets: LargePages::new(&packets) }
+        out
     }
 
     /// How many of this tree's node and leaf lanes hold something.
