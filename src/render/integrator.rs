@@ -763,9 +763,9 @@ mod tests {
             (MaterialKind::Dielectric, 0.4, false),
             (MaterialKind::Diffuse, 1.0, true),
         ];
-        // Lit by the box's area light alone, diffuse vertices take the stream kernel's
-        // vector stage (the others their lane's one-path step); with an environment too,
-        // every vertex takes the one-path step.
+        // Diffuse and glossy vertices take the stream kernel's vector stage (the others
+        // their lane's one-path step): lit by the box's area light alone, its light
+        // samples are vector code; with an environment too, drawn lane by lane.
         let cases = kinds.into_iter().flat_map(|k| [(k, true), (k, false)]);
         for ((kind, roughness, textured), environment) in cases {
             let (assets, mut state) = testscenes::cornell_box(40, 30);

@@ -90,8 +90,8 @@ pub struct TraceReport {
     /// shading stage ran (null where the stage never ran).
     pub vector_lane_occupancy: Option<f64>,
     /// Share of path vertices shaded by the vector stage rather than the
-    /// one-path step in their lane (glossy, glass and conductor vertices; sun, sky and
-    /// point lights).
+    /// one-path step in their lane (glass and conductor vertices, and every vertex of
+    /// the BSDF-only strategy).
     pub vector_vertex_share: Option<f64>,
 }
 
