@@ -6,7 +6,7 @@
 //! sides, so that every lane holds the scalar code's bits (tested below against the
 //! scalar functions). Glossy vertices took the one-path step in their lane before
 //! (11 % of the bunny's vertices, 15 % of Sponza's); in the vector stage the bunny and
-//! Sponza render 1.04× as fast (AMD EPYC, paired medians of 25 alternating rounds).
+//! Sponza render 1.04× as fast (AMD EPYC Zen 4, paired medians of 25 alternating rounds).
 
 use std::f32::consts::{FRAC_1_PI, PI};
 
