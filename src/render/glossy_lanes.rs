@@ -10,7 +10,7 @@
 
 use std::f32::consts::{FRAC_1_PI, PI};
 
-use super::lanes::{Isa, Mask, F8, V8};
+use super::lanes::{Isa, F8, V8};
 use super::trig::sin_cos_lanes;
 
 /// The glossy lobes' parameters in eight lanes.
@@ -32,7 +32,7 @@ fn normalize<I: Isa>(v: V8<I>) -> V8<I> {
 
 /// [`super::microfacet::fresnel_dielectric`] in lanes.
 #[inline(always)]
-pub(super) fn fresnel_dielectric<I: Isa>(cos_i: F8<I>, eta: F8<I>) -> F8<I> {
+fn fresnel_dielectric<I: Isa>(cos_i: F8<I>, eta: F8<I>) -> F8<I> {
     let one = F8::splat(1.0);
     let inside = cos_i.lt(F8::splat(0.0));
     let cos_i = F8::select(inside, -cos_i, cos_i);
@@ -65,30 +65,46 @@ fn lambda<I: Isa>(alpha: F8<I>, w: V8<I>) -> F8<I> {
     F8::select(cos2.ge(one), F8::splat(0.0), l)
 }
 
+/// What the glossy lobes need of the direction `wo` they are seen from: the scalar
+/// `Bsdf` recomputes these in every call, the stage once for its two evaluations and
+/// its sample (the same values, so the same bits).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Seen<I> {
+    wo: V8<I>,
+    /// The coat's Fresnel reflectance at the macro normal.
+    f_o: F8<I>,
+    /// Smith Λ(wo).
+    lambda_o: F8<I>,
+    /// Probability of sampling the coat rather than the base.
+    coat: F8<I>,
+}
+
 impl<I: Isa> Glossy<I> {
-    /// [`super::bsdf::Bsdf`]'s coat probability: the coat's share of the lobes' albedo.
+    /// The terms of `wo` (above the surface) shared by [`Glossy::eval`] and
+    /// [`Glossy::sample`].
     #[inline(always)]
-    pub(super) fn coat_probability(&self, wo: V8<I>) -> F8<I> {
+    pub(super) fn seen_from(&self, wo: V8<I>) -> Seen<I> {
         let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
-        let f = fresnel_dielectric(wo.z, self.eta);
-        let base = (one - f) * self.color.max_element();
-        let p = f / (f + base).max(F8::splat(1e-6));
+        let f_o = fresnel_dielectric(wo.z, self.eta);
+        // `Bsdf`'s coat probability: the coat's share of the lobes' albedo.
+        let base = (one - f_o) * self.color.max_element();
+        let p = f_o / (f_o + base).max(F8::splat(1e-6));
         // f32::clamp: NaN stays NaN.
         let p = F8::select(p.lt(zero), zero, p);
-        F8::select(p.gt(one), one, p)
+        let coat = F8::select(p.gt(one), one, p);
+        Seen { wo, f_o, lambda_o: lambda(self.alpha, wo), coat }
     }
 
-    /// `f(wo, wi) · cos θi` and the pdf of sampling `wi`, given the coat probability
-    /// `coat` at `wo` (`Bsdf::eval` of a glossy surface).
+    /// `f(wo, wi) · cos θi` and the pdf of sampling `wi` (`Bsdf::eval` of a glossy
+    /// surface).
     #[inline(always)]
-    pub(super) fn eval(&self, wo: V8<I>, wi: V8<I>, coat: F8<I>) -> (V8<I>, F8<I>) {
+    pub(super) fn eval(&self, seen: &Seen<I>, wi: V8<I>) -> (V8<I>, F8<I>) {
         let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+        let Seen { wo, f_o, lambda_o: lo, coat } = *seen;
         let below = wi.z.le(zero) | wo.z.le(zero);
         let m = normalize(wo + wi);
         let d = ggx_d(self.alpha, m);
-        let f_o = fresnel_dielectric(wo.z, self.eta);
-        let (lo, li) = (lambda(self.alpha, wo), lambda(self.alpha, wi));
-        let g2 = one / (one + lo + li);
+        let g2 = one / (one + lo + lambda(self.alpha, wi));
         let g1 = one / (one + lo);
         let four_cos = F8::splat(4.0) * wo.z;
         let spec = f_o * d * g2 / four_cos;
@@ -124,21 +140,15 @@ impl<I: Isa> Glossy<I> {
         normalize(V8 { x: a * nh.x, y: a * nh.y, z: nh.z.max(F8::splat(1e-6)) })
     }
 
-    /// The sampled direction of `Bsdf::sample` on a glossy surface seen from `wo`
-    /// (above it): the coat's reflection of a visible normal where `u0 < coat`, else
-    /// `diffuse`, the cosine-weighted direction drawn from the same `u1`, `u2`.
+    /// The sampled direction of `Bsdf::sample` on a glossy surface: the coat's
+    /// reflection of a visible normal where `u0` falls on the coat, else `diffuse`, the
+    /// cosine-weighted direction drawn from the same `u1`, `u2`.
     #[inline(always)]
-    pub(super) fn sample(
-        &self,
-        wo: V8<I>,
-        [u0, u1, u2]: [F8<I>; 3],
-        coat: F8<I>,
-        diffuse: V8<I>,
-    ) -> V8<I> {
+    pub(super) fn sample(&self, seen: &Seen<I>, [u0, u1, u2]: [F8<I>; 3], diffuse: V8<I>) -> V8<I> {
+        let wo = seen.wo;
         let m = self.sample_visible(wo, u1, u2);
         let reflected = m.scale(F8::splat(2.0) * wo.dot(m)) - wo;
-        let on_coat: Mask<I> = u0.lt(coat);
-        V8::select(on_coat, reflected, diffuse)
+        V8::select(u0.lt(seen.coat), reflected, diffuse)
     }
 }
 
@@ -204,10 +214,10 @@ mod tests {
                 }
                 bsdfs.push(b);
             }
-            let coat = lanes.coat_probability(wo);
-            let (f, pdf) = lanes.eval(wo, wi, coat);
+            let seen = lanes.seen_from(wo);
+            let (f, pdf) = lanes.eval(&seen, wi);
             let diffuse = crate::render::stream::cosine_hemisphere(u[1], u[2]);
-            let sampled = lanes.sample(wo, u, coat, diffuse);
+            let sampled = lanes.sample(&seen, u, diffuse);
             for (l, b) in bsdfs.iter().enumerate() {
                 let (o, i) = (wo.lane(l), wi.lane(l));
                 let (ef, epdf) = b.eval(o, i);

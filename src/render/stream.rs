@@ -527,7 +527,7 @@ fn scatter_vector<I: Isa>(
     let color = g.color;
     let coated = Glossy { alpha: g.alpha, eta: g.eta, color };
     let glossy_mask = U8::from_bitmask(glossy);
-    let coat = if glossy != 0 { coated.coat_probability(wo) } else { zero };
+    let seen = (glossy != 0).then(|| coated.seen_from(wo));
 
     let LightSamples { wi, dist, radiance, pdf: light_pdf, sampled } = if lights.area_only() {
         sample_area_lanes(lights, p, &u_light)
@@ -541,8 +541,8 @@ fn scatter_vector<I: Isa>(
     let cos_pi = wl.z * F8::splat(FRAC_1_PI);
     let mut f = V8::select(above, color.scale(cos_pi), V8::default());
     let mut bsdf_pdf = F8::select(above, cos_pi, zero);
-    if glossy != 0 {
-        let (fg, pdf_g) = coated.eval(wo, wl, coat);
+    if let Some(seen) = &seen {
+        let (fg, pdf_g) = coated.eval(seen, wl);
         f = V8::select(glossy_mask, fg, f);
         bsdf_pdf = F8::select(glossy_mask, pdf_g, bsdf_pdf);
     }
@@ -571,9 +571,9 @@ fn scatter_vector<I: Isa>(
     let mut wi = cosine_hemisphere(u[1], u[2]);
     let mut pdf = wi.z * F8::splat(FRAC_1_PI);
     let mut weight = color;
-    if glossy != 0 {
-        let wg = coated.sample(wo, [u[0], u[1], u[2]], coat, wi);
-        let (fg, pdf_g) = coated.eval(wo, wg, coat);
+    if let Some(seen) = &seen {
+        let wg = coated.sample(seen, [u[0], u[1], u[2]], wi);
+        let (fg, pdf_g) = coated.eval(seen, wg);
         alive = alive & !(glossy_mask & !pdf_g.gt(zero));
         wi = V8::select(glossy_mask, wg, wi);
         pdf = F8::select(glossy_mask, pdf_g, pdf);
