@@ -100,6 +100,8 @@ pub struct TraceArgs {
 /// `--build` of `bench trace`.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum BuildArg {
+    /// x86-64-v4: the v3 code with AVX-512 enabled (F, VL, BW, DQ, CD).
+    V4,
     /// x86-64-v3: paths in AVX2 lanes (CPUs with AVX2, BMI1/2, LZCNT and FMA).
     V3,
     /// Baseline x86-64: paths in SSE2 lanes (every x86-64 CPU).
@@ -138,14 +140,16 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
 fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
     let build = match args.build {
         None => KernelBuild::best(),
+        Some(BuildArg::V4) => KernelBuild::V4,
         Some(BuildArg::V3) => KernelBuild::V3,
         Some(BuildArg::Baseline) => KernelBuild::Baseline,
     };
     if !build.available() {
         anyhow::bail!(
-            "bench trace --build {}: this CPU lacks x86-64-v3 (AVX2, BMI1/2, LZCNT, FMA); \
-             it runs --build baseline",
-            build.name()
+            "bench trace: this CPU cannot run the {} build (v3 needs AVX2, BMI1/2, LZCNT and \
+             FMA; v4 also AVX-512 F, VL, BW, DQ and CD); the fastest it runs is {}",
+            build.name(),
+            KernelBuild::best().name()
         );
     }
     let settings = TraceSettings {

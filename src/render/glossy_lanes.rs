@@ -165,7 +165,8 @@ mod tests {
 
     use super::*;
     use crate::render::bsdf::Bsdf;
-    use crate::render::lanes::{Avx2, Sse2, WIDTH};
+    use crate::render::lanes::tests::isa_tests;
+    use crate::render::lanes::WIDTH;
     use crate::render::microfacet::cosine_hemisphere;
 
     /// A small deterministic generator of test inputs in [0, 1).
@@ -189,7 +190,7 @@ mod tests {
     /// grazing and normal incidence): every lane must hold the scalar `Bsdf`'s bits.
     fn scalar_bits<I: Isa>() {
         let mut state = 0x2545_f491;
-        for round in 0..4000 {
+        for round in 0..2000 {
             let mut lanes = Glossy::<I>::default();
             let (mut wo, mut wi) = (V8::<I>::default(), V8::<I>::default());
             let mut u = [F8::<I>::default(); 3];
@@ -233,15 +234,6 @@ mod tests {
         }
     }
 
-    #[test]
-    fn sse2_lanes_give_the_scalar_bits() {
-        scalar_bits::<Sse2>();
-    }
-
-    #[test]
-    fn avx2_lanes_give_the_scalar_bits() {
-        if crate::render::lanes::tests::avx2_runnable("avx2_lanes_give_the_scalar_bits") {
-            scalar_bits::<Avx2>();
-        }
-    }
+    isa_tests!(scalar_bits: sse2_lanes_give_the_scalar_bits, avx2_lanes_give_the_scalar_bits,
+        avx512_lanes_give_the_scalar_bits);
 }

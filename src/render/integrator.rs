@@ -473,37 +473,41 @@ pub fn render_pixels_counted(
 
 /// A compiled build of the stream kernel ([`super::stream`]). A baseline binary still
 /// runs on every x86-64 CPU (the workers of a desktop grid are whatever machines an
-/// office has), while those with AVX2 get the x86-64-v3 build. Every build gives the
-/// same pixels bit for bit (each lane operation is one IEEE operation in the scalar
-/// code's order, and Rust never contracts or reorders float arithmetic), so a grid may
-/// mix them.
+/// office has), while those with AVX2 get the x86-64-v3 build and those with AVX-512 the
+/// x86-64-v4 build. Every build gives the same pixels bit for bit (each lane operation is
+/// one IEEE operation in the scalar code's order, and Rust never contracts or reorders
+/// float arithmetic), so a grid may mix them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum KernelBuild {
-    /// x86-64-v3: paths in AVX2 registers, node tests in one AVX register, TZCNT/LZCNT
-    /// in traversal, VEX three-operand code.
+    /// x86-64-v4: paths in one AVX-512 register (F, VL, BW, DQ, CD enabled: EVEX
+    /// encoding, 32 vector registers, mask registers for comparisons), node tests as v3.
+    V4,
+    /// x86-64-v3: paths in two AVX2 registers, node tests in one AVX register,
+    /// TZCNT/LZCNT in traversal, VEX three-operand code.
     V3,
-    /// Baseline x86-64: paths in two SSE2 halves, node tests in two SSE halves (scalar
+    /// Baseline x86-64: paths in four SSE2 quarters, node tests in two SSE halves (scalar
     /// code off x86-64).
     Baseline,
 }
 
 impl KernelBuild {
+    /// Every build, fastest first.
+    pub const ALL: [Self; 3] = [Self::V4, Self::V3, Self::Baseline];
+
     /// The fastest build this CPU runs.
     pub fn best() -> Self {
-        if Self::V3.available() {
-            Self::V3
-        } else {
-            Self::Baseline
-        }
+        Self::ALL.into_iter().find(|b| b.available()).unwrap_or(Self::Baseline)
     }
 
     /// Whether this CPU runs the build.
     pub fn available(self) -> bool {
         match self {
             #[cfg(target_arch = "x86_64")]
+            Self::V4 => v4::available(),
+            #[cfg(target_arch = "x86_64")]
             Self::V3 => v3::available(),
             #[cfg(not(target_arch = "x86_64"))]
-            Self::V3 => false,
+            Self::V4 | Self::V3 => false,
             Self::Baseline => true,
         }
     }
@@ -511,6 +515,7 @@ impl KernelBuild {
     /// The instruction-set level the build is compiled for.
     pub fn name(self) -> &'static str {
         match self {
+            Self::V4 => "x86-64-v4",
             Self::V3 => "x86-64-v3",
             Self::Baseline => "baseline",
         }
@@ -531,56 +536,82 @@ pub fn render_pixels_in(
 ) -> RenderStats {
     assert!(build.available(), "this CPU cannot run the {} build of the kernel", build.name());
     match build {
-        // SAFETY: the CPU has every feature `v3::render_pixels` is compiled with.
+        // SAFETY (both): the CPU has every feature the build is compiled with (asserted).
+        #[cfg(target_arch = "x86_64")]
+        KernelBuild::V4 => unsafe { v4::render_pixels(scene, frame, pixels, out, strategy) },
         #[cfg(target_arch = "x86_64")]
         KernelBuild::V3 => unsafe { v3::render_pixels(scene, frame, pixels, out, strategy) },
         #[cfg(not(target_arch = "x86_64"))]
-        KernelBuild::V3 => unreachable!("no x86-64-v3 build off x86-64"),
+        KernelBuild::V4 | KernelBuild::V3 => unreachable!("no SIMD build off x86-64"),
         KernelBuild::Baseline => super::stream::render(Sse, scene, frame, pixels, out, strategy),
     }
 }
 
-/// The kernel compiled for x86-64-v3: paths in AVX2 lanes, node tests in one eight-lane
-/// AVX register ([`crate::render::accel::Avx`]), TZCNT/LZCNT in BVH traversal.
+/// A module holding the kernel compiled with `#[target_feature]`s `$features` (one string
+/// literal, as the attribute takes; `$f` the same features one by one, for detection),
+/// its lanes named by the [`crate::render::accel::Lanes`] token `$lanes`: node tests in
+/// one eight-lane AVX register, TZCNT/LZCNT in BVH traversal, and the paths' lanes in
+/// two AVX2 halves (v3) or one AVX-512 register (v4). The same source for both builds.
 #[cfg(target_arch = "x86_64")]
-pub(crate) mod v3 {
-    use super::*;
+macro_rules! simd_build {
+    ($(#[$doc:meta])* $name:ident, $lanes:ident, $features:literal, [$($f:tt),*]) => {
+        $(#[$doc])*
+        pub(crate) mod $name {
+            use super::*;
 
-    /// Whether this CPU can run [`render_pixels`] (cached by std after the first call).
-    #[inline]
-    pub fn available() -> bool {
-        std::is_x86_feature_detected!("avx2")
-            && std::is_x86_feature_detected!("bmi1")
-            && std::is_x86_feature_detected!("bmi2")
-            && std::is_x86_feature_detected!("lzcnt")
-            && std::is_x86_feature_detected!("popcnt")
-            && std::is_x86_feature_detected!("fma")
-    }
+            /// Whether this CPU can run [`render_pixels`] (cached by std after the first
+            /// call).
+            #[inline]
+            pub fn available() -> bool {
+                $(std::is_x86_feature_detected!($f))&&*
+            }
 
-    /// # Safety
-    /// Only on a CPU for which [`available`] is true.
-    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt,fma")]
-    pub unsafe fn render_pixels(
-        scene: &RenderScene,
-        frame: u64,
-        pixels: &[u32],
-        out: &mut Vec<PixelSample>,
-        strategy: Strategy,
-    ) -> RenderStats {
-        // x86-64-v3 includes AVX and AVX2, which `available` checked.
-        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX2");
-        super::super::stream::render(lanes, scene, frame, pixels, out, strategy)
-    }
+            /// # Safety
+            /// Only on a CPU for which [`available`] is true.
+            #[target_feature(enable = $features)]
+            pub unsafe fn render_pixels(
+                scene: &RenderScene,
+                frame: u64,
+                pixels: &[u32],
+                out: &mut Vec<PixelSample>,
+                strategy: Strategy,
+            ) -> RenderStats {
+                // `available` checked every feature the token needs.
+                let lanes = crate::render::accel::$lanes::detect().expect("the build's features");
+                super::super::stream::render(lanes, scene, frame, pixels, out, strategy)
+            }
 
-    /// # Safety
-    /// Only on a CPU for which [`available`] is true.
-    #[target_feature(enable = "avx,avx2,bmi1,bmi2,lzcnt,popcnt,fma")]
-    pub unsafe fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
-        // x86-64-v3 includes AVX and AVX2, which `available` checked.
-        let lanes = crate::render::accel::Avx::detect().expect("x86-64-v3 includes AVX2");
-        primary_hits_with(lanes, scene, first, out)
-    }
+            /// # Safety
+            /// Only on a CPU for which [`available`] is true.
+            #[target_feature(enable = $features)]
+            pub unsafe fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
+                let lanes = crate::render::accel::$lanes::detect().expect("the build's features");
+                primary_hits_with(lanes, scene, first, out)
+            }
+        }
+    };
 }
+
+#[cfg(target_arch = "x86_64")]
+simd_build!(
+    /// The kernel compiled for x86-64-v3.
+    v3,
+    Avx,
+    "avx,avx2,bmi1,bmi2,lzcnt,popcnt,fma",
+    ["avx", "avx2", "bmi1", "bmi2", "lzcnt", "popcnt", "fma"]
+);
+
+#[cfg(target_arch = "x86_64")]
+simd_build!(
+    /// The kernel compiled for x86-64-v4 (the v3 features and AVX-512 F/VL/BW/DQ/CD).
+    v4,
+    Avx512,
+    "avx,avx2,bmi1,bmi2,lzcnt,popcnt,fma,avx512f,avx512vl,avx512bw,avx512dq,avx512cd",
+    [
+        "avx", "avx2", "bmi1", "bmi2", "lzcnt", "popcnt", "fma", "avx512f", "avx512vl",
+        "avx512bw", "avx512dq", "avx512cd"
+    ]
+);
 
 /// The one-path kernel: each camera path traced to its end before the next starts, in
 /// the baseline build. The stream kernel replaced it; it stays as the reference the
@@ -638,12 +669,14 @@ pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
 /// [`primary_hit`] of pixels `first..first + out.len()` into `out`, in the kernel build
 /// [`render_pixels_counted`] would pick (the same values bit for bit).
 pub fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
-    #[cfg(target_arch = "x86_64")]
-    if v3::available() {
-        // SAFETY: the CPU has every feature `v3::primary_hits` is compiled with.
-        return unsafe { v3::primary_hits(scene, first, out) };
+    match KernelBuild::best() {
+        // SAFETY (both): `best` picks only a build whose features the CPU has.
+        #[cfg(target_arch = "x86_64")]
+        KernelBuild::V4 => unsafe { v4::primary_hits(scene, first, out) },
+        #[cfg(target_arch = "x86_64")]
+        KernelBuild::V3 => unsafe { v3::primary_hits(scene, first, out) },
+        _ => primary_hits_with(Sse, scene, first, out),
     }
-    primary_hits_with(Sse, scene, first, out)
 }
 
 #[inline(always)]
@@ -746,13 +779,12 @@ mod tests {
     /// for bit, for every material kind (a grid mixes CPUs).
     #[test]
     fn every_kernel_build_matches_the_one_path_reference_bit_for_bit() {
-        let mut builds = vec![KernelBuild::Baseline];
-        if KernelBuild::V3.available() {
-            builds.push(KernelBuild::V3);
-        } else {
-            let why = "the CPU lacks x86-64-v3, so only the baseline build was checked";
-            let test = "every_kernel_build_matches_the_one_path_reference_bit_for_bit";
-            crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
+        let test = "every_kernel_build_matches_the_one_path_reference_bit_for_bit";
+        let (builds, missing): (Vec<_>, Vec<_>) =
+            KernelBuild::ALL.into_iter().partition(|b| b.available());
+        for build in missing {
+            let why = format!("the CPU lacks {}, so that build was not checked", build.name());
+            crate::testing::skip(test, crate::testing::Missing::CpuFeature, &why);
         }
         // The last case textures the walls (uvs 0..1 reach both ends of the texel wrap).
         let kinds = [

@@ -37,38 +37,56 @@ use std::marker::PhantomData;
 use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Neg, Not, Shl, Shr, Sub};
 
 /// Lanes per group.
-pub const WIDTH: usize = 8;
+pub const WIDTH: usize = 16;
+
+/// The register width a lane type's operators compile to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Level {
+    /// Four 128-bit SSE2 quarters (baseline x86-64).
+    Sse2,
+    /// Two 256-bit AVX/AVX2 halves (x86-64-v3).
+    Avx2,
+    /// One 512-bit AVX-512 register (x86-64-v4).
+    Avx512,
+}
 
 /// The instructions a lane type's operators compile to.
 pub trait Isa: Copy + Default + Debug + PartialEq + Eq {
-    /// AVX/AVX2 registers (else SSE2 halves).
-    const AVX2: bool;
+    const LEVEL: Level;
 }
 
-/// One AVX/AVX2 register per lane group: only in code of the x86-64-v3 build.
+/// Two AVX/AVX2 registers per lane group: only in code of the x86-64-v3 build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Avx2;
 
 impl Isa for Avx2 {
-    const AVX2: bool = true;
+    const LEVEL: Level = Level::Avx2;
 }
 
-/// Two SSE2 halves per lane group: every x86-64 CPU.
+/// One AVX-512 register per lane group: only in code of the x86-64-v4 build.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Avx512;
+
+impl Isa for Avx512 {
+    const LEVEL: Level = Level::Avx512;
+}
+
+/// Four SSE2 quarters per lane group: every x86-64 CPU.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Sse2;
 
 impl Isa for Sse2 {
-    const AVX2: bool = false;
+    const LEVEL: Level = Level::Sse2;
 }
 
-/// Eight `f32` lanes.
+/// Sixteen `f32` lanes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C, align(32))]
+#[repr(C, align(64))]
 pub struct F8<I>(pub [f32; WIDTH], PhantomData<I>);
 
-/// Eight `u32` lanes (also masks: all ones is true).
+/// Sixteen `u32` lanes (also masks: all ones is true).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[repr(C, align(32))]
+#[repr(C, align(64))]
 pub struct U8<I>(pub [u32; WIDTH], PhantomData<I>);
 
 /// Lanes of all ones (true) or all zeros (false).
@@ -76,9 +94,10 @@ pub type Mask<I> = U8<I>;
 
 /// Runs SIMD intrinsics on the lanes as registers.
 ///
-/// SAFETY (of every use): the AVX/AVX2 side runs only for `Avx2` lanes, which only code
-/// inlined into the x86-64-v3 build uses, and that build runs only where the CPU has
-/// AVX2; SSE2 is part of baseline x86-64.
+/// SAFETY (of every use): the AVX-512 side runs only for `Avx512` lanes and the AVX/AVX2
+/// side only for `Avx2` lanes, which only code inlined into the x86-64-v4 and -v3 builds
+/// uses, and those builds run only where the CPU has their features; SSE2 is part of
+/// baseline x86-64.
 #[cfg(target_arch = "x86_64")]
 macro_rules! simd {
     ($e:expr) => {{
@@ -95,88 +114,90 @@ macro_rules! simd {
 #[cfg(target_arch = "x86_64")]
 mod reg {
     //! Reinterpretation between lane arrays and registers (no instructions).
-    use std::arch::x86_64::{__m128, __m128i, __m256, __m256i};
+    use std::arch::x86_64::{__m128, __m128i, __m256, __m256i, __m512, __m512i};
 
-    #[inline(always)]
-    pub fn f(x: [f32; 8]) -> __m256 {
-        // SAFETY: same size (32 bytes), any bits are a valid value of either.
-        unsafe { std::mem::transmute(x) }
+    macro_rules! casts {
+        ($($name:ident: $from:ty => $to:ty;)*) => {$(
+            #[inline(always)]
+            pub fn $name(x: $from) -> $to {
+                // SAFETY: same size (64 bytes), any bits are a valid value of either.
+                unsafe { std::mem::transmute(x) }
+            }
+        )*};
     }
-    #[inline(always)]
-    pub fn u(x: [u32; 8]) -> __m256i {
-        // SAFETY: as `f`.
-        unsafe { std::mem::transmute(x) }
-    }
-    #[inline(always)]
-    pub fn fo(x: __m256) -> [f32; 8] {
-        // SAFETY: as `f`.
-        unsafe { std::mem::transmute(x) }
-    }
-    #[inline(always)]
-    pub fn uo(x: __m256i) -> [u32; 8] {
-        // SAFETY: as `f`.
-        unsafe { std::mem::transmute(x) }
-    }
-    /// The two SSE halves.
-    #[inline(always)]
-    pub fn f2(x: [f32; 8]) -> [__m128; 2] {
-        // SAFETY: as `f`.
-        unsafe { std::mem::transmute(x) }
-    }
-    #[inline(always)]
-    pub fn u2(x: [u32; 8]) -> [__m128i; 2] {
-        // SAFETY: as `f`.
-        unsafe { std::mem::transmute(x) }
-    }
-    #[inline(always)]
-    pub fn fo2(x: [__m128; 2]) -> [f32; 8] {
-        // SAFETY: as `f`.
-        unsafe { std::mem::transmute(x) }
-    }
-    #[inline(always)]
-    pub fn uo2(x: [__m128i; 2]) -> [u32; 8] {
-        // SAFETY: as `f`.
-        unsafe { std::mem::transmute(x) }
+
+    casts! {
+        f1: [f32; 16] => __m512;
+        f2: [f32; 16] => [__m256; 2];
+        f4: [f32; 16] => [__m128; 4];
+        u1: [u32; 16] => __m512i;
+        u2: [u32; 16] => [__m256i; 2];
+        u4: [u32; 16] => [__m128i; 4];
+        fo1: __m512 => [f32; 16];
+        fo2: [__m256; 2] => [f32; 16];
+        fo4: [__m128; 4] => [f32; 16];
+        uo1: __m512i => [u32; 16];
+        uo2: [__m256i; 2] => [u32; 16];
+        uo4: [__m128i; 4] => [u32; 16];
     }
 }
 
-/// The same SSE2 operation on both halves of two lane arrays (written out twice, not a
-/// closure, so that it is never compiled out of line).
+/// One operation on the registers of two lane arrays (`$a`, `$b`) of kind `f` or `u`,
+/// giving lanes of kind `f` or `u`: `$avx512` on the one AVX-512 register, `$avx` on
+/// each AVX half, `$sse` on each SSE quarter, by the lanes' [`Level`] (a constant, so
+/// only one arm is compiled into a build). Written out per register, not as a closure,
+/// so that it is never compiled out of line.
 #[cfg(target_arch = "x86_64")]
-macro_rules! halves {
-    ($kind:ident, $a:expr, $b:expr, |$x:ident, $y:ident| $e:expr) => {{
-        let (a, b) = (halves!(@in $kind, $a), halves!(@in $kind, $b));
-        let lo = {
-            let ($x, $y) = (a[0], b[0]);
-            simd!($e)
-        };
-        let hi = {
-            let ($x, $y) = (a[1], b[1]);
-            simd!($e)
-        };
-        halves!(@out $kind, [lo, hi])
+macro_rules! regs {
+    ($I:ty, $in:ident -> $out:ident, $a:expr, $b:expr,
+     |$x:ident, $y:ident| sse: $sse:expr, avx: $avx:expr, avx512: $avx512:expr) => {{
+        let (a, b) = ($a, $b);
+        match <$I as Isa>::LEVEL {
+            Level::Avx512 => {
+                let ($x, $y) = (regs!(@in1 $in, a), regs!(@in1 $in, b));
+                regs!(@out1 $out, simd!($avx512))
+            }
+            Level::Avx2 => {
+                let (a, b) = (regs!(@in2 $in, a), regs!(@in2 $in, b));
+                let r0 = { let ($x, $y) = (a[0], b[0]); simd!($avx) };
+                let r1 = { let ($x, $y) = (a[1], b[1]); simd!($avx) };
+                regs!(@out2 $out, [r0, r1])
+            }
+            Level::Sse2 => {
+                let (a, b) = (regs!(@in4 $in, a), regs!(@in4 $in, b));
+                let r0 = { let ($x, $y) = (a[0], b[0]); simd!($sse) };
+                let r1 = { let ($x, $y) = (a[1], b[1]); simd!($sse) };
+                let r2 = { let ($x, $y) = (a[2], b[2]); simd!($sse) };
+                let r3 = { let ($x, $y) = (a[3], b[3]); simd!($sse) };
+                regs!(@out4 $out, [r0, r1, r2, r3])
+            }
+        }
     }};
-    (@in f, $e:expr) => { reg::f2($e) };
-    (@in u, $e:expr) => { reg::u2($e) };
-    (@out f, $e:expr) => { reg::fo2($e) };
-    (@out u, $e:expr) => { reg::uo2($e) };
+    (@in1 f, $e:expr) => { reg::f1($e) };
+    (@in1 u, $e:expr) => { reg::u1($e) };
+    (@in2 f, $e:expr) => { reg::f2($e) };
+    (@in2 u, $e:expr) => { reg::u2($e) };
+    (@in4 f, $e:expr) => { reg::f4($e) };
+    (@in4 u, $e:expr) => { reg::u4($e) };
+    (@out1 f, $e:expr) => { reg::fo1($e) };
+    (@out1 u, $e:expr) => { reg::uo1($e) };
+    (@out2 f, $e:expr) => { reg::fo2($e) };
+    (@out2 u, $e:expr) => { reg::uo2($e) };
+    (@out4 f, $e:expr) => { reg::fo4($e) };
+    (@out4 u, $e:expr) => { reg::uo4($e) };
 }
 
-/// A binary operator: `$avx` for AVX2 lanes, `$sse` on both halves for SSE2 lanes, the
-/// scalar `$op` lane by lane off x86-64.
+/// A binary operator: one instruction per register (AVX-512, AVX2 or SSE2), the scalar
+/// `$op` lane by lane off x86-64.
 macro_rules! lanewise {
-    ($ty:ident, $kind:ident, $trait:ident, $f:ident, $op:tt, $avx:ident, $sse:ident) => {
+    ($ty:ident, $kind:ident, $trait:ident, $f:ident, $op:tt, $sse:ident, $avx:ident, $avx512:ident) => {
         impl<I: Isa> $trait for $ty<I> {
             type Output = $ty<I>;
             #[inline(always)]
             fn $f(self, o: $ty<I>) -> $ty<I> {
                 #[cfg(target_arch = "x86_64")]
-                return $ty::new(if I::AVX2 {
-                    let (a, b) = (reg::$kind(self.0), reg::$kind(o.0));
-                    lanewise!(@out $kind, simd!($avx(a, b)))
-                } else {
-                    halves!($kind, self.0, o.0, |x, y| $sse(x, y))
-                });
+                return $ty::new(regs!(I, $kind -> $kind, self.0, o.0,
+                    |x, y| sse: $sse(x, y), avx: $avx(x, y), avx512: $avx512(x, y)));
                 #[cfg(not(target_arch = "x86_64"))]
                 {
                     let mut out = self;
@@ -188,17 +209,15 @@ macro_rules! lanewise {
             }
         }
     };
-    (@out f, $e:expr) => { reg::fo($e) };
-    (@out u, $e:expr) => { reg::uo($e) };
 }
 
-lanewise!(F8, f, Add, add, +, _mm256_add_ps, _mm_add_ps);
-lanewise!(F8, f, Sub, sub, -, _mm256_sub_ps, _mm_sub_ps);
-lanewise!(F8, f, Mul, mul, *, _mm256_mul_ps, _mm_mul_ps);
-lanewise!(F8, f, Div, div, /, _mm256_div_ps, _mm_div_ps);
-lanewise!(U8, u, BitAnd, bitand, &, _mm256_and_si256, _mm_and_si128);
-lanewise!(U8, u, BitOr, bitor, |, _mm256_or_si256, _mm_or_si128);
-lanewise!(U8, u, BitXor, bitxor, ^, _mm256_xor_si256, _mm_xor_si128);
+lanewise!(F8, f, Add, add, +, _mm_add_ps, _mm256_add_ps, _mm512_add_ps);
+lanewise!(F8, f, Sub, sub, -, _mm_sub_ps, _mm256_sub_ps, _mm512_sub_ps);
+lanewise!(F8, f, Mul, mul, *, _mm_mul_ps, _mm256_mul_ps, _mm512_mul_ps);
+lanewise!(F8, f, Div, div, /, _mm_div_ps, _mm256_div_ps, _mm512_div_ps);
+lanewise!(U8, u, BitAnd, bitand, &, _mm_and_si128, _mm256_and_si256, _mm512_and_si512);
+lanewise!(U8, u, BitOr, bitor, |, _mm_or_si128, _mm256_or_si256, _mm512_or_si512);
+lanewise!(U8, u, BitXor, bitxor, ^, _mm_xor_si128, _mm256_xor_si256, _mm512_xor_si512);
 
 impl<I: Isa> Neg for F8<I> {
     type Output = F8<I>;
@@ -218,19 +237,16 @@ impl<I: Isa> Not for U8<I> {
 
 /// A shift by the same count in every lane.
 macro_rules! shift {
-    ($trait:ident, $f:ident, $op:tt, $avx:ident, $sse:ident) => {
+    ($trait:ident, $f:ident, $op:tt, $sse:ident, $avx:ident, $avx512:ident) => {
         impl<I: Isa> $trait<u32> for U8<I> {
             type Output = U8<I>;
             #[inline(always)]
             fn $f(self, n: u32) -> U8<I> {
                 #[cfg(target_arch = "x86_64")]
-                return U8::new(if I::AVX2 {
-                    reg::uo(simd!($avx(reg::u(self.0), _mm_cvtsi32_si128(n as i32))))
-                } else {
-                    let count = simd!(_mm_cvtsi32_si128(n as i32));
-                    let h = reg::u2(self.0);
-                    reg::uo2([simd!($sse(h[0], count)), simd!($sse(h[1], count))])
-                });
+                return U8::new(regs!(I, u -> u, self.0, self.0, |x, _y|
+                    sse: $sse(x, _mm_cvtsi32_si128(n as i32)),
+                    avx: $avx(x, _mm_cvtsi32_si128(n as i32)),
+                    avx512: $avx512(x, _mm_cvtsi32_si128(n as i32))));
                 #[cfg(not(target_arch = "x86_64"))]
                 self.map(|x| x $op n)
             }
@@ -238,24 +254,21 @@ macro_rules! shift {
     };
 }
 
-shift!(Shr, shr, >>, _mm256_srl_epi32, _mm_srl_epi32);
-shift!(Shl, shl, <<, _mm256_sll_epi32, _mm_sll_epi32);
+shift!(Shr, shr, >>, _mm_srl_epi32, _mm256_srl_epi32, _mm512_srl_epi32);
+shift!(Shl, shl, <<, _mm_sll_epi32, _mm256_sll_epi32, _mm512_sll_epi32);
 
-/// A comparison: AVX predicate or SSE2 comparison on x86-64, the scalar operator
-/// elsewhere (all ordered: false where either side is NaN).
+/// A comparison: SSE2 comparison, AVX predicate, or AVX-512 predicate into a mask
+/// register widened to lanes, on x86-64; the scalar operator elsewhere (all ordered:
+/// false where either side is NaN).
 macro_rules! compare {
     ($name:ident, $op:tt, $pred:ident, $sse:ident) => {
         #[inline(always)]
         pub fn $name(self, o: Self) -> Mask<I> {
             #[cfg(target_arch = "x86_64")]
-            return if I::AVX2 {
-                U8::new(reg::uo(simd!(_mm256_castps_si256(_mm256_cmp_ps::<$pred>(
-                    reg::f(self.0),
-                    reg::f(o.0)
-                )))))
-            } else {
-                U8::from_bits_of(halves!(f, self.0, o.0, |x, y| $sse(x, y)))
-            };
+            return U8::new(regs!(I, f -> u, self.0, o.0, |x, y|
+                sse: _mm_castps_si128($sse(x, y)),
+                avx: _mm256_castps_si256(_mm256_cmp_ps::<$pred>(x, y)),
+                avx512: _mm512_movm_epi32(_mm512_cmp_ps_mask::<$pred>(x, y))));
             #[cfg(not(target_arch = "x86_64"))]
             {
                 let mut out = U8::default();
@@ -299,11 +312,8 @@ impl<I: Isa> F8<I> {
     #[inline(always)]
     pub fn sqrt(self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return F8::new(if I::AVX2 {
-            reg::fo(simd!(_mm256_sqrt_ps(reg::f(self.0))))
-        } else {
-            halves!(f, self.0, self.0, |x, _y| _mm_sqrt_ps(x))
-        });
+        return F8::new(regs!(I, f -> f, self.0, self.0, |x, _y|
+            sse: _mm_sqrt_ps(x), avx: _mm256_sqrt_ps(x), avx512: _mm512_sqrt_ps(x)));
         #[cfg(not(target_arch = "x86_64"))]
         self.map(f32::sqrt)
     }
@@ -331,20 +341,22 @@ impl<I: Isa> F8<I> {
     #[inline(always)]
     fn extreme<const MAX: bool>(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return F8::new(if I::AVX2 {
-            simd!({
-                let (x, y) = (reg::f(self.0), reg::f(o.0));
-                let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
-                let m = if MAX { _mm256_max_ps(y, x) } else { _mm256_min_ps(y, x) };
-                reg::fo(_mm256_blendv_ps(m, y, nan))
-            })
-        } else {
-            halves!(f, self.0, o.0, |x, y| {
-                let nan = _mm_cmpunord_ps(x, x);
-                let m = if MAX { _mm_max_ps(y, x) } else { _mm_min_ps(y, x) };
-                _mm_or_ps(_mm_and_ps(nan, y), _mm_andnot_ps(nan, m))
-            })
-        });
+        return F8::new(regs!(I, f -> f, self.0, o.0, |x, y|
+        sse: {
+            let nan = _mm_cmpunord_ps(x, x);
+            let m = if MAX { _mm_max_ps(y, x) } else { _mm_min_ps(y, x) };
+            _mm_or_ps(_mm_and_ps(nan, y), _mm_andnot_ps(nan, m))
+        },
+        avx: {
+            let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(x, x);
+            let m = if MAX { _mm256_max_ps(y, x) } else { _mm256_min_ps(y, x) };
+            _mm256_blendv_ps(m, y, nan)
+        },
+        avx512: {
+            let nan = _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(x, x);
+            let m = if MAX { _mm512_max_ps(y, x) } else { _mm512_min_ps(y, x) };
+            _mm512_mask_blend_ps(nan, m, y)
+        }));
         #[cfg(not(target_arch = "x86_64"))]
         F8::new(std::array::from_fn(|i| {
             if MAX {
@@ -359,12 +371,9 @@ impl<I: Isa> F8<I> {
     #[inline(always)]
     pub fn trunc_i32(self) -> U8<I> {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(if I::AVX2 {
-            reg::uo(simd!(_mm256_cvttps_epi32(reg::f(self.0))))
-        } else {
-            let h = reg::f2(self.0);
-            reg::uo2([simd!(_mm_cvttps_epi32(h[0])), simd!(_mm_cvttps_epi32(h[1]))])
-        });
+        return U8::new(regs!(I, f -> u, self.0, self.0, |x, _y|
+            sse: _mm_cvttps_epi32(x), avx: _mm256_cvttps_epi32(x),
+            avx512: _mm512_cvttps_epi32(x)));
         #[cfg(not(target_arch = "x86_64"))]
         U8::new(self.0.map(|x| x as i32 as u32))
     }
@@ -373,12 +382,9 @@ impl<I: Isa> F8<I> {
     #[inline(always)]
     pub fn from_i32(x: U8<I>) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return F8::new(if I::AVX2 {
-            reg::fo(simd!(_mm256_cvtepi32_ps(reg::u(x.0))))
-        } else {
-            let h = reg::u2(x.0);
-            reg::fo2([simd!(_mm_cvtepi32_ps(h[0])), simd!(_mm_cvtepi32_ps(h[1]))])
-        });
+        return F8::new(regs!(I, u -> f, x.0, x.0, |x, _y|
+            sse: _mm_cvtepi32_ps(x), avx: _mm256_cvtepi32_ps(x),
+            avx512: _mm512_cvtepi32_ps(x)));
         #[cfg(not(target_arch = "x86_64"))]
         F8::new(x.0.map(|x| x as i32 as f32))
     }
@@ -405,12 +411,6 @@ impl<I: Isa> U8<I> {
         Self::new([x; WIDTH])
     }
 
-    /// The bits of eight `f32` lanes.
-    #[inline(always)]
-    fn from_bits_of(x: [f32; WIDTH]) -> Self {
-        Self::new(bits(x))
-    }
-
     #[inline(always)]
     pub fn map(self, f: impl Fn(u32) -> u32) -> Self {
         Self::new(each(self.0, f))
@@ -425,20 +425,19 @@ impl<I: Isa> U8<I> {
     #[inline(always)]
     pub fn wrapping_mul(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(if I::AVX2 {
-            reg::uo(simd!(_mm256_mullo_epi32(reg::u(self.0), reg::u(o.0))))
-        } else {
+        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
             // SSE2 has no 32-bit low multiply: even and odd lanes' 64-bit products,
             // their low halves interleaved back.
-            halves!(u, self.0, o.0, |a, b| {
+            sse: {
                 let even = _mm_mul_epu32(a, b);
                 let odd = _mm_mul_epu32(_mm_srli_epi64::<32>(a), _mm_srli_epi64::<32>(b));
                 _mm_unpacklo_epi32(
                     _mm_shuffle_epi32::<0b00_00_10_00>(even),
                     _mm_shuffle_epi32::<0b00_00_10_00>(odd),
                 )
-            })
-        });
+            },
+            avx: _mm256_mullo_epi32(a, b),
+            avx512: _mm512_mullo_epi32(a, b)));
         #[cfg(not(target_arch = "x86_64"))]
         U8::new(std::array::from_fn(|i| self.0[i].wrapping_mul(o.0[i])))
     }
@@ -446,11 +445,9 @@ impl<I: Isa> U8<I> {
     #[inline(always)]
     pub fn wrapping_add(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(if I::AVX2 {
-            reg::uo(simd!(_mm256_add_epi32(reg::u(self.0), reg::u(o.0))))
-        } else {
-            halves!(u, self.0, o.0, |a, b| _mm_add_epi32(a, b))
-        });
+        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
+            sse: _mm_add_epi32(a, b), avx: _mm256_add_epi32(a, b),
+            avx512: _mm512_add_epi32(a, b)));
         #[cfg(not(target_arch = "x86_64"))]
         U8::new(std::array::from_fn(|i| self.0[i].wrapping_add(o.0[i])))
     }
@@ -459,11 +456,9 @@ impl<I: Isa> U8<I> {
     #[inline(always)]
     pub fn eq(self, o: Self) -> Mask<I> {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(if I::AVX2 {
-            reg::uo(simd!(_mm256_cmpeq_epi32(reg::u(self.0), reg::u(o.0))))
-        } else {
-            halves!(u, self.0, o.0, |a, b| _mm_cmpeq_epi32(a, b))
-        });
+        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
+            sse: _mm_cmpeq_epi32(a, b), avx: _mm256_cmpeq_epi32(a, b),
+            avx512: _mm512_movm_epi32(_mm512_cmpeq_epi32_mask(a, b))));
         #[cfg(not(target_arch = "x86_64"))]
         U8::new(std::array::from_fn(|i| if self.0[i] == o.0[i] { u32::MAX } else { 0 }))
     }
@@ -472,39 +467,58 @@ impl<I: Isa> U8<I> {
     #[inline(always)]
     pub fn gt_i32(self, o: Self) -> Mask<I> {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(if I::AVX2 {
-            reg::uo(simd!(_mm256_cmpgt_epi32(reg::u(self.0), reg::u(o.0))))
-        } else {
-            halves!(u, self.0, o.0, |a, b| _mm_cmpgt_epi32(a, b))
-        });
+        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
+            sse: _mm_cmpgt_epi32(a, b), avx: _mm256_cmpgt_epi32(a, b),
+            avx512: _mm512_movm_epi32(_mm512_cmpgt_epi32_mask(a, b))));
         #[cfg(not(target_arch = "x86_64"))]
         U8::new(std::array::from_fn(
             |i| if self.0[i] as i32 > o.0[i] as i32 { u32::MAX } else { 0 },
         ))
     }
 
-    /// [`u32::reverse_bits`] per lane. AVX2: bytes reversed by a shuffle, then the bits
-    /// of each byte through a nibble table. SSE2 has no byte shuffle: bits, pairs and
-    /// nibbles swapped by masks and shifts, then the bytes.
+    /// [`u32::reverse_bits`] per lane. AVX2 and AVX-512: bytes reversed by a shuffle
+    /// within each 128-bit lane, then the bits of each byte through a nibble table. SSE2
+    /// has no byte shuffle: bits, pairs and nibbles swapped by masks and shifts, then the
+    /// bytes.
     #[inline(always)]
     pub fn reverse_bits(self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        if I::AVX2 {
-            return U8::new(simd!({
-                let bytes = _mm256_setr_epi8(
-                    3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12, 3, 2, 1, 0, 7, 6, 5, 4,
-                    11, 10, 9, 8, 15, 14, 13, 12,
-                );
-                let nibbles = _mm256_setr_epi8(
-                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
-                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
-                );
+        if I::LEVEL != Level::Sse2 {
+            return U8::new(regs!(I, u -> u, self.0, self.0, |x, _y|
+            sse: x,
+            avx: {
+                let bytes = _mm256_broadcastsi128_si256(_mm_setr_epi8(
+                    3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12,
+                ));
+                let nibbles = _mm256_broadcastsi128_si256(_mm_setr_epi8(
+                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb,
+                    0x7, 0xf,
+                ));
                 let low = _mm256_set1_epi8(0x0f);
-                let x = _mm256_shuffle_epi8(reg::u(self.0), bytes);
+                let x = _mm256_shuffle_epi8(x, bytes);
                 let lo = _mm256_shuffle_epi8(nibbles, _mm256_and_si256(x, low));
-                let hi =
-                    _mm256_shuffle_epi8(nibbles, _mm256_and_si256(_mm256_srli_epi16::<4>(x), low));
-                reg::uo(_mm256_or_si256(_mm256_slli_epi16::<4>(lo), hi))
+                let hi = _mm256_shuffle_epi8(
+                    nibbles,
+                    _mm256_and_si256(_mm256_srli_epi16::<4>(x), low),
+                );
+                _mm256_or_si256(_mm256_slli_epi16::<4>(lo), hi)
+            },
+            avx512: {
+                let bytes = _mm512_broadcast_i32x4(_mm_setr_epi8(
+                    3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12,
+                ));
+                let nibbles = _mm512_broadcast_i32x4(_mm_setr_epi8(
+                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb,
+                    0x7, 0xf,
+                ));
+                let low = _mm512_set1_epi8(0x0f);
+                let x = _mm512_shuffle_epi8(x, bytes);
+                let lo = _mm512_shuffle_epi8(nibbles, _mm512_and_si512(x, low));
+                let hi = _mm512_shuffle_epi8(
+                    nibbles,
+                    _mm512_and_si512(_mm512_srli_epi16::<4>(x), low),
+                );
+                _mm512_or_si512(_mm512_slli_epi16::<4>(lo), hi)
             }));
         }
         #[inline(always)]
@@ -519,11 +533,12 @@ impl<I: Isa> U8<I> {
     #[inline(always)]
     pub fn gather(table: &[u32; 256], index: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        if I::AVX2 {
-            return U8::new(reg::uo(simd!(_mm256_i32gather_epi32::<4>(
-                table.as_ptr() as *const i32,
-                reg::u(index.0)
-            ))));
+        if I::LEVEL != Level::Sse2 {
+            let t = table.as_ptr() as *const i32;
+            return U8::new(regs!(I, u -> u, index.0, index.0, |i, _y|
+                sse: i,
+                avx: _mm256_i32gather_epi32::<4>(t, i),
+                avx512: _mm512_i32gather_epi32::<4>(i, t)));
         }
         let mut out = [0; WIDTH];
         for (o, &i) in out.iter_mut().zip(&index.0) {
@@ -541,7 +556,7 @@ impl<I: Isa> U8<I> {
     /// Lane `i` true where bit `i` of `bits` is set.
     #[inline(always)]
     pub fn from_bitmask(bits: u32) -> Mask<I> {
-        let lane_bits = U8::new([1, 2, 4, 8, 16, 32, 64, 128]);
+        let lane_bits = U8::new(std::array::from_fn(|i| 1 << i));
         (U8::splat(bits) & lane_bits).eq(lane_bits)
     }
 
@@ -549,11 +564,22 @@ impl<I: Isa> U8<I> {
     #[inline(always)]
     pub fn bitmask(self) -> u32 {
         #[cfg(target_arch = "x86_64")]
-        return if I::AVX2 {
-            simd!(_mm256_movemask_ps(_mm256_castsi256_ps(reg::u(self.0))) as u32)
-        } else {
-            let h = reg::f2(F8::<I>::from_bits(self).0);
-            simd!(_mm_movemask_ps(h[0]) | (_mm_movemask_ps(h[1]) << 4)) as u32
+        return match I::LEVEL {
+            Level::Avx512 => simd!(_mm512_movepi32_mask(reg::u1(self.0))) as u32,
+            Level::Avx2 => simd!({
+                let h = reg::u2(self.0);
+                let lo = _mm256_movemask_ps(_mm256_castsi256_ps(h[0])) as u32;
+                let hi = _mm256_movemask_ps(_mm256_castsi256_ps(h[1])) as u32;
+                lo | (hi << 8)
+            }),
+            Level::Sse2 => simd!({
+                let q = reg::u4(self.0);
+                let m0 = _mm_movemask_ps(_mm_castsi128_ps(q[0])) as u32;
+                let m1 = _mm_movemask_ps(_mm_castsi128_ps(q[1])) as u32;
+                let m2 = _mm_movemask_ps(_mm_castsi128_ps(q[2])) as u32;
+                let m3 = _mm_movemask_ps(_mm_castsi128_ps(q[3])) as u32;
+                m0 | (m1 << 4) | (m2 << 8) | (m3 << 12)
+            }),
         };
         #[cfg(not(target_arch = "x86_64"))]
         {
@@ -691,22 +717,93 @@ impl<I: Isa> Neg for V8<I> {
 pub(crate) mod tests {
     use super::*;
 
-    /// Whether this CPU runs the AVX2 lane types, reporting a skip where not.
-    pub(crate) fn avx2_runnable(test: &str) -> bool {
-        if crate::render::integrator::v3::available() {
-            return true;
+    /// Whether this CPU runs lane types of `level`, reporting a skip where not.
+    pub(crate) fn runnable(level: Level, test: &str) -> bool {
+        let (runs, why) = match level {
+            Level::Sse2 => return true,
+            Level::Avx2 => (
+                crate::render::integrator::v3::available(),
+                "the CPU lacks x86-64-v3, so the AVX2 lanes were not checked",
+            ),
+            Level::Avx512 => (
+                crate::render::integrator::v4::available(),
+                "the CPU lacks x86-64-v4, so the AVX-512 lanes were not checked",
+            ),
+        };
+        if !runs {
+            crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
         }
-        let why = "the CPU lacks x86-64-v3, so only the SSE2 lanes were checked";
-        crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
-        false
+        runs
     }
+
+    /// Three tests running the generic check `$check` on the SSE2, AVX2 and AVX-512 lane
+    /// types (the last two skipped where this CPU lacks their build's features).
+    macro_rules! isa_tests {
+        ($check:ident: $sse2:ident, $avx2:ident, $avx512:ident) => {
+            #[test]
+            fn $sse2() {
+                $check::<$crate::render::lanes::Sse2>();
+            }
+
+            #[test]
+            fn $avx2() {
+                use $crate::render::lanes::{tests::runnable, Avx2, Level};
+                if runnable(Level::Avx2, stringify!($avx2)) {
+                    $check::<Avx2>();
+                }
+            }
+
+            #[test]
+            fn $avx512() {
+                use $crate::render::lanes::{tests::runnable, Avx512, Level};
+                if runnable(Level::Avx512, stringify!($avx512)) {
+                    $check::<Avx512>();
+                }
+            }
+        };
+    }
+    pub(crate) use isa_tests;
 
     fn scalar_bits<I: Isa>() {
         // Opaque inputs: LLVM folds constant NaN-making operations (0/0, √-x) to a NaN
         // other than the one the hardware makes, and Rust leaves NaN bits unspecified.
         use std::hint::black_box;
-        let a = F8::<I>::new(black_box([0.5, -1.25, 3.0, f32::NAN, 0.0, -0.0, 1e-30, 7.5]));
-        let b = F8::<I>::new(black_box([2.0, 4.0, -3.0, 1.0, f32::NAN, 0.0, 3.0, -7.5]));
+        let a = F8::<I>::new(black_box([
+            0.5,
+            -1.25,
+            3.0,
+            f32::NAN,
+            0.0,
+            -0.0,
+            1e-30,
+            7.5,
+            -0.0,
+            f32::INFINITY,
+            2.5,
+            -1e20,
+            f32::NAN,
+            1.0,
+            -3.0,
+            0.25,
+        ]));
+        let b = F8::<I>::new(black_box([
+            2.0,
+            4.0,
+            -3.0,
+            1.0,
+            f32::NAN,
+            0.0,
+            3.0,
+            -7.5,
+            -0.0,
+            f32::INFINITY,
+            -2.5,
+            1e20,
+            f32::NAN,
+            0.0,
+            -3.0,
+            8.0,
+        ]));
         for (a, b) in [(a, b), (b, a)] {
             for i in 0..WIDTH {
                 let (x, y) = (a.0[i], b.0[i]);
@@ -735,17 +832,36 @@ pub(crate) mod tests {
             assert_eq!(v.dot(v).0[i].to_bits(), s.dot(s).to_bits(), "lane {i}");
             assert_eq!(v.max_element().0[i].to_bits(), s.max_element().to_bits(), "lane {i}");
         }
-        let m = U8::<I>::from_bitmask(0b1010_0110);
-        assert_eq!(m.bitmask(), 0b1010_0110);
+        let m = U8::<I>::from_bitmask(0b1100_0101_1010_0110);
+        assert_eq!(m.bitmask(), 0b1100_0101_1010_0110);
         assert_eq!(U8::<I>::splat(0x0000_0001).reverse_bits(), U8::splat(0x8000_0000));
-        let x =
-            U8::<I>::new([0, 1, 0x8000_0000, 0xdead_beef, 0x1234_5678, u32::MAX, 7, 0x0f0f_00f1]);
-        let y = U8::<I>::new([3, 0x9e37_79b9, 2, 0x7feb_352d, 0xffff_fffe, 5, 0x8000_0001, 11]);
+        let x = U8::<I>::new([
+            0,
+            1,
+            0x8000_0000,
+            0xdead_beef,
+            0x1234_5678,
+            u32::MAX,
+            7,
+            0x0f0f_00f1,
+            0x0102_0408,
+            0x7fff_ffff,
+            0xffff_0000,
+            0x0000_ffff,
+            42,
+            0xcafe_f00d,
+            0x8000_0001,
+            0x5555_aaaa,
+        ]);
+        let y = U8::<I>::new(std::array::from_fn(|i| {
+            [3, 0x9e37_79b9, 2, 0x7feb_352d, 0xffff_fffe, 5, 0x8000_0001, 11][i % 8] ^ (i as u32)
+        }));
         let table: [u32; 256] =
             std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) ^ 0x55);
         let (rev, mul, add) = (x.reverse_bits(), x.wrapping_mul(y), x.wrapping_add(y));
         let (shr, shl, gather) = (x >> 8, x << 3, U8::gather(&table, x & U8::splat(0xff)));
-        let (eq, gt) = (x.eq(y | U8::new([0, 0, 0, 0, 0, u32::MAX, 0, 0])), x.gt_i32(y));
+        let (eq, gt) =
+            (x.eq(U8::select(U8::from_bitmask(0b0100_0000_0010_0000), x, !x)), x.gt_i32(y));
         let unit = (x >> 8).to_f32();
         for i in 0..WIDTH {
             let (a, b) = (x.0[i], y.0[i]);
@@ -757,8 +873,10 @@ pub(crate) mod tests {
             assert_eq!(gt.0[i] != 0, a as i32 > b as i32, "lane {i}");
             assert_eq!(unit.0[i].to_bits(), ((a >> 8) as f32).to_bits(), "lane {i}");
         }
-        assert_eq!(eq.bitmask(), 0b0010_0000);
-        let t = F8::<I>::new([0.4, -0.6, 2.9, -3.5, 1e6, -0.0, 7.0, -1e-3]);
+        assert_eq!(eq.bitmask(), 0b0100_0000_0010_0000);
+        let t = F8::<I>::new(std::array::from_fn(|i| {
+            [0.4, -0.6, 2.9, -3.5, 1e6, -0.0, 7.0, -1e-3][i % 8] * if i < 8 { 1.0 } else { -3.0 }
+        }));
         let k = t.trunc_i32();
         for i in 0..WIDTH {
             assert_eq!(k.0[i] as i32, t.0[i] as i32, "lane {i}");
@@ -766,15 +884,6 @@ pub(crate) mod tests {
         }
     }
 
-    #[test]
-    fn sse2_lanes_give_the_scalar_bits() {
-        scalar_bits::<Sse2>();
-    }
-
-    #[test]
-    fn avx2_lanes_give_the_scalar_bits() {
-        if avx2_runnable("avx2_lanes_give_the_scalar_bits") {
-            scalar_bits::<Avx2>();
-        }
-    }
+    isa_tests!(scalar_bits: sse2_lanes_give_the_scalar_bits, avx2_lanes_give_the_scalar_bits,
+        avx512_lanes_give_the_scalar_bits);
 }

@@ -248,7 +248,8 @@ pub(crate) fn next4_lanes<I: Isa>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::lanes::{Avx2, Sse2, WIDTH};
+    use crate::render::lanes::tests::isa_tests;
+    use crate::render::lanes::WIDTH;
 
     /// Plain Sobol value by the defining XOR over set bits.
     fn sobol_slow(index: u32, dim: usize) -> u32 {
@@ -308,7 +309,7 @@ mod tests {
         }
     }
 
-    fn eight_lanes_draw<I: Isa>() {
+    fn lanes_draw<I: Isa>() {
         let mut streams: [SampleStream; WIDTH] =
             std::array::from_fn(|l| SampleStream::new(9, 4, 100 + l as u32 * 37, l as u32 * 3));
         for (l, stream) in streams.iter_mut().enumerate() {
@@ -328,18 +329,8 @@ mod tests {
         }
     }
 
-    #[test]
-    fn eight_sse2_lanes_draw_what_eight_streams_draw() {
-        eight_lanes_draw::<Sse2>();
-    }
-
-    #[test]
-    fn eight_avx2_lanes_draw_what_eight_streams_draw() {
-        let test = "eight_avx2_lanes_draw_what_eight_streams_draw";
-        if crate::render::lanes::tests::avx2_runnable(test) {
-            eight_lanes_draw::<Avx2>();
-        }
-    }
+    isa_tests!(lanes_draw: sse2_lanes_draw_what_their_streams_draw,
+        avx2_lanes_draw_what_their_streams_draw, avx512_lanes_draw_what_their_streams_draw);
 
     #[test]
     fn sobol_points_are_stratified_in_2d() {

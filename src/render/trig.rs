@@ -65,7 +65,8 @@ pub fn sin_cos_lanes<I: Isa>(x: F8<I>) -> (F8<I>, F8<I>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::lanes::{Avx2, Sse2, WIDTH};
+    use crate::render::lanes::tests::isa_tests;
+    use crate::render::lanes::WIDTH;
 
     #[test]
     fn matches_double_precision_sin_and_cos() {
@@ -85,9 +86,11 @@ mod tests {
         assert!(s.abs() < 1e-7 && (c + 1.0).abs() < 1e-7);
     }
 
-    fn eight_lanes<I: Isa>() {
-        for i in -400..400 {
-            let x = F8::<I>::new(std::array::from_fn(|l| (i * 8 + l as i32) as f32 * 0.0123));
+    fn lanes<I: Isa>() {
+        for i in -200..200 {
+            let x = F8::<I>::new(std::array::from_fn(|l| {
+                (i * WIDTH as i32 + l as i32) as f32 * 0.0123
+            }));
             let (s, c) = sin_cos_lanes(x);
             for l in 0..WIDTH {
                 let (es, ec) = sin_cos(x.0[l]);
@@ -96,15 +99,6 @@ mod tests {
         }
     }
 
-    #[test]
-    fn eight_sse2_lanes_give_the_scalar_bits() {
-        eight_lanes::<Sse2>();
-    }
-
-    #[test]
-    fn eight_avx2_lanes_give_the_scalar_bits() {
-        if crate::render::lanes::tests::avx2_runnable("eight_avx2_lanes_give_the_scalar_bits") {
-            eight_lanes::<Avx2>();
-        }
-    }
+    isa_tests!(lanes: sse2_lanes_give_the_scalar_bits, avx2_lanes_give_the_scalar_bits,
+        avx512_lanes_give_the_scalar_bits);
 }

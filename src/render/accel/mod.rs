@@ -34,7 +34,7 @@ mod wide;
 pub use blas::{validate_mesh, Blas, MeshError};
 pub use tlas::{Hit, Instance, Tlas, FLAT_MAX_TRIANGLES};
 pub use triangle::{LeafTri, TriEdges};
-pub use wide::{Avx, LaneFill, Lanes, Sse};
+pub use wide::{Avx, Avx512, LaneFill, Lanes, Sse};
 
 #[cfg(test)]
 mod tests {

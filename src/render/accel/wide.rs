@@ -65,6 +65,35 @@ impl Lanes for Avx {
     type Simd = crate::render::lanes::Avx2;
 }
 
+/// [`Avx`]'s node tests with the stream kernel's paths in sixteen-lane AVX-512
+/// registers: only a CPU with AVX-512 F, BW, DQ and VL has one.
+#[derive(Clone, Copy, Debug)]
+pub struct Avx512(());
+
+impl Lanes for Avx512 {
+    const AVX: bool = true;
+    type Simd = crate::render::lanes::Avx512;
+}
+
+impl Avx512 {
+    /// The token, where this CPU has AVX2 and AVX-512 F, BW, DQ and VL.
+    #[cfg(target_arch = "x86_64")]
+    pub fn detect() -> Option<Self> {
+        let avx512 = Avx::detect().is_some()
+            && std::is_x86_feature_detected!("avx512f")
+            && std::is_x86_feature_detected!("avx512bw")
+            && std::is_x86_feature_detected!("avx512dq")
+            && std::is_x86_feature_detected!("avx512vl");
+        avx512.then_some(Self(()))
+    }
+
+    /// The token, where this CPU has AVX-512 (never, off x86-64).
+    #[cfg(not(target_arch = "x86_64"))]
+    pub fn detect() -> Option<Self> {
+        None
+    }
+}
+
 impl Avx {
     /// The token, where this CPU has AVX and AVX2.
     #[cfg(target_arch = "x86_64")]

@@ -83,8 +83,8 @@ pub struct TraceReport {
     pub node_lane_occupancy: f64,
     /// Share of the four lanes of a leaf's triangle test that hold a triangle.
     pub leaf_lane_occupancy: f64,
-    /// The kernel build that rendered: `x86-64-v3` (paths in AVX2 lanes) or `baseline`
-    /// (SSE2 lanes, every x86-64 CPU).
+    /// The kernel build that rendered: `x86-64-v4` (the v3 code with AVX-512 enabled),
+    /// `x86-64-v3` (paths in AVX2 lanes) or `baseline` (SSE2 lanes, every x86-64 CPU).
     pub build: &'static str,
     /// Share of the eight lanes that held a vertex each time the stream kernel's vector
     /// shading stage ran (null where the stage never ran).
@@ -177,8 +177,7 @@ mod tests {
     #[test]
     fn report_counts_every_sample_and_at_least_one_ray_each() {
         let (assets, state) = cornell_box(640, 480);
-        let builds = [KernelBuild::Baseline, KernelBuild::V3];
-        for build in builds.into_iter().filter(|b| b.available()) {
+        for build in KernelBuild::ALL.into_iter().filter(|b| b.available()) {
             let settings =
                 TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1, build };
             let r = bench_scene("cornell-box", assets.clone(), &state, settings).unwrap();
