@@ -100,7 +100,8 @@ pub struct TraceArgs {
 /// `--build` of `bench trace`.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum BuildArg {
-    /// x86-64-v4: the v3 code with AVX-512 enabled (F, VL, BW, DQ, CD).
+    /// x86-64-v4: paths in AVX-512 lanes (CPUs with x86-64-v3 and AVX-512 F, VL, BW, DQ
+    /// and CD).
     V4,
     /// x86-64-v3: paths in AVX2 lanes (CPUs with AVX2, BMI1/2, LZCNT and FMA).
     V3,

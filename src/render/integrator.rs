@@ -28,7 +28,7 @@ pub struct RenderStats {
     pub samples: u64,
     /// Rays cast: closest-hit and shadow rays.
     pub rays: u64,
-    /// Times the stream kernel's eight-lane vector stage ran, path vertices it shaded,
+    /// Times the stream kernel's sixteen-lane vector stage ran, path vertices it shaded,
     /// and vertices shaded by the one-path step in a lane (zero in the one-path test
     /// reference).
     pub vector_stages: u64,
@@ -536,10 +536,11 @@ pub fn render_pixels_in(
 ) -> RenderStats {
     assert!(build.available(), "this CPU cannot run the {} build of the kernel", build.name());
     match build {
-        // SAFETY (both): the CPU has every feature the build is compiled with (asserted).
         #[cfg(target_arch = "x86_64")]
+        // SAFETY: the CPU has every feature the build is compiled with (asserted).
         KernelBuild::V4 => unsafe { v4::render_pixels(scene, frame, pixels, out, strategy) },
         #[cfg(target_arch = "x86_64")]
+        // SAFETY: as V4.
         KernelBuild::V3 => unsafe { v3::render_pixels(scene, frame, pixels, out, strategy) },
         #[cfg(not(target_arch = "x86_64"))]
         KernelBuild::V4 | KernelBuild::V3 => unreachable!("no SIMD build off x86-64"),
@@ -670,10 +671,11 @@ pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
 /// [`render_pixels_counted`] would pick (the same values bit for bit).
 pub fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
     match KernelBuild::best() {
-        // SAFETY (both): `best` picks only a build whose features the CPU has.
         #[cfg(target_arch = "x86_64")]
+        // SAFETY: `best` picks only a build whose features the CPU has.
         KernelBuild::V4 => unsafe { v4::primary_hits(scene, first, out) },
         #[cfg(target_arch = "x86_64")]
+        // SAFETY: as V4.
         KernelBuild::V3 => unsafe { v3::primary_hits(scene, first, out) },
         _ => primary_hits_with(Sse, scene, first, out),
     }

@@ -1,35 +1,38 @@
-//! Eight paths' numbers side by side: `f32` and `u32` lanes with element-wise
+//! Sixteen paths' numbers side by side: `f32` and `u32` lanes with element-wise
 //! operators, for the stream kernel ([`super::stream`]), in each kernel build's
 //! instructions.
 //!
 //! The lane types carry the instruction set they compile to as a type parameter
-//! ([`Isa`]): [`Avx2`] makes every operator one AVX/AVX2 instruction on a 256-bit
-//! register, [`Sse2`] two SSE2 instructions on 128-bit halves (baseline x86-64, so every
-//! x86-64 CPU runs it); off x86-64 both are loops over eight elements. A parameter, not
-//! a compile-time target feature, because one binary holds both builds and picks one at
-//! run time ([`super::integrator::render_pixels_counted`]): `F8<Avx2>` may only be used by
-//! code inlined into the x86-64-v3 build, whose features make its intrinsics inline there
-//! (the stream kernel names its lanes through [`super::accel::Lanes::Simd`], which only
-//! the v3 build's token maps to `Avx2`).
+//! ([`Isa`]): [`Avx512`] makes every operator one AVX-512 instruction on a 512-bit
+//! register, [`Avx2`] two AVX/AVX2 instructions on 256-bit halves, [`Sse2`] four SSE2
+//! instructions on 128-bit quarters (baseline x86-64, so every x86-64 CPU runs it); off
+//! x86-64 all are loops over sixteen elements. A parameter, not a compile-time target
+//! feature, because one binary holds every build and picks one at run time
+//! ([`super::integrator::render_pixels_counted`]): `F32s<Avx512>` may only be used by code
+//! inlined into the x86-64-v4 build and `F32s<Avx2>` by code of the v3 build, whose
+//! features make their intrinsics inline there (the stream kernel names its lanes
+//! through [`super::accel::Lanes::Simd`], which only those builds' tokens map to them).
 //!
 //! Each operator is one IEEE operation per lane, never fused (Rust does not contract
 //! `mul` and `add` into FMA), so a lane's value is exactly what the scalar code computes
-//! from the same inputs in the same order, in either instruction set: that is what lets
+//! from the same inputs in the same order, in any instruction set: that is what lets
 //! every build of the stream kernel give the one-path kernel's bits. Not `std::simd`
 //! (nightly only) nor the `wide` crate (it picks its instructions by compile-time target
-//! features, so the run-time dispatched v3 build would get SSE halves); LLVM's own
+//! features, so the run-time dispatched builds would get SSE quarters); LLVM's own
 //! vectorisation of eight-element loops gave half-width code with spills in the v3
 //! build (0.77× the intrinsics' samples per second on the Cornell box).
 //!
-//! CPUs with AVX-512 run the `Avx2` lanes. An x86-64-v4 build of the same code (AVX-512
-//! enabled: EVEX encoding, 32 registers, mask registers) gave the same bits and no speed
-//! on an Intel Xeon (Emerald Rapids): 1.01×, 1.01× and 0.99× the v3 build on the Cornell
-//! box, bunny and Sponza (e3c261e, paired medians of 14 alternating rounds), so it was not
-//! kept. A sixteen-lane set was not written: the lane width is a constant of every
-//! stage's code, and the AVX-512 machine was lent for fifteen minutes, enough to test and
-//! measure a build, not to debug a rewrite whose bits only it could check.
+//! Why sixteen lanes in every build: the width is a constant of every stage's code
+//! (sample draws, light sampling, the BSDFs, roulette), and one width keeps one source
+//! for all builds. Sixteen is one AVX-512 register; on AVX2 the two halves measured as
+//! fast as the eight lanes of one register did (paired medians of 5 alternating rounds on
+//! an AMD EPYC Zen 4, v3 build: Cornell box 1.01×, bunny 1.01×, Sponza 1.01×), the halves'
+//! independent chains covering the latency that their doubled register pressure costs.
+//! An earlier x86-64-v4 build of the eight-lane code (EVEX encoding, 32 registers, mask
+//! registers, no wider lanes) gave no speed on an Intel Xeon (1.01×, 1.01×, 0.99× the v3
+//! build); the speed of the sixteen-lane v4 build is in [`super::stream`].
 //!
-//! Comparisons return a [`Mask`] of all-ones or all-zero lanes, and [`F8::select`] picks
+//! Comparisons return a [`Mask`] of all-ones or all-zero lanes, and [`F32s::select`] picks
 //! by bits, so branches of the scalar code become blends of both sides.
 
 use std::fmt::Debug;
@@ -82,15 +85,15 @@ impl Isa for Sse2 {
 /// Sixteen `f32` lanes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C, align(64))]
-pub struct F8<I>(pub [f32; WIDTH], PhantomData<I>);
+pub struct F32s<I>(pub [f32; WIDTH], PhantomData<I>);
 
 /// Sixteen `u32` lanes (also masks: all ones is true).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(C, align(64))]
-pub struct U8<I>(pub [u32; WIDTH], PhantomData<I>);
+pub struct U32s<I>(pub [u32; WIDTH], PhantomData<I>);
 
 /// Lanes of all ones (true) or all zeros (false).
-pub type Mask<I> = U8<I>;
+pub type Mask<I> = U32s<I>;
 
 /// Runs SIMD intrinsics on the lanes as registers.
 ///
@@ -211,39 +214,39 @@ macro_rules! lanewise {
     };
 }
 
-lanewise!(F8, f, Add, add, +, _mm_add_ps, _mm256_add_ps, _mm512_add_ps);
-lanewise!(F8, f, Sub, sub, -, _mm_sub_ps, _mm256_sub_ps, _mm512_sub_ps);
-lanewise!(F8, f, Mul, mul, *, _mm_mul_ps, _mm256_mul_ps, _mm512_mul_ps);
-lanewise!(F8, f, Div, div, /, _mm_div_ps, _mm256_div_ps, _mm512_div_ps);
-lanewise!(U8, u, BitAnd, bitand, &, _mm_and_si128, _mm256_and_si256, _mm512_and_si512);
-lanewise!(U8, u, BitOr, bitor, |, _mm_or_si128, _mm256_or_si256, _mm512_or_si512);
-lanewise!(U8, u, BitXor, bitxor, ^, _mm_xor_si128, _mm256_xor_si256, _mm512_xor_si512);
+lanewise!(F32s, f, Add, add, +, _mm_add_ps, _mm256_add_ps, _mm512_add_ps);
+lanewise!(F32s, f, Sub, sub, -, _mm_sub_ps, _mm256_sub_ps, _mm512_sub_ps);
+lanewise!(F32s, f, Mul, mul, *, _mm_mul_ps, _mm256_mul_ps, _mm512_mul_ps);
+lanewise!(F32s, f, Div, div, /, _mm_div_ps, _mm256_div_ps, _mm512_div_ps);
+lanewise!(U32s, u, BitAnd, bitand, &, _mm_and_si128, _mm256_and_si256, _mm512_and_si512);
+lanewise!(U32s, u, BitOr, bitor, |, _mm_or_si128, _mm256_or_si256, _mm512_or_si512);
+lanewise!(U32s, u, BitXor, bitxor, ^, _mm_xor_si128, _mm256_xor_si256, _mm512_xor_si512);
 
-impl<I: Isa> Neg for F8<I> {
-    type Output = F8<I>;
+impl<I: Isa> Neg for F32s<I> {
+    type Output = F32s<I>;
     #[inline(always)]
-    fn neg(self) -> F8<I> {
-        F8::from_bits(self.to_bits() ^ U8::splat(0x8000_0000))
+    fn neg(self) -> F32s<I> {
+        F32s::from_bits(self.to_bits() ^ U32s::splat(0x8000_0000))
     }
 }
 
-impl<I: Isa> Not for U8<I> {
-    type Output = U8<I>;
+impl<I: Isa> Not for U32s<I> {
+    type Output = U32s<I>;
     #[inline(always)]
-    fn not(self) -> U8<I> {
-        self ^ U8::splat(u32::MAX)
+    fn not(self) -> U32s<I> {
+        self ^ U32s::splat(u32::MAX)
     }
 }
 
 /// A shift by the same count in every lane.
 macro_rules! shift {
     ($trait:ident, $f:ident, $op:tt, $sse:ident, $avx:ident, $avx512:ident) => {
-        impl<I: Isa> $trait<u32> for U8<I> {
-            type Output = U8<I>;
+        impl<I: Isa> $trait<u32> for U32s<I> {
+            type Output = U32s<I>;
             #[inline(always)]
-            fn $f(self, n: u32) -> U8<I> {
+            fn $f(self, n: u32) -> U32s<I> {
                 #[cfg(target_arch = "x86_64")]
-                return U8::new(regs!(I, u -> u, self.0, self.0, |x, _y|
+                return U32s::new(regs!(I, u -> u, self.0, self.0, |x, _y|
                     sse: $sse(x, _mm_cvtsi32_si128(n as i32)),
                     avx: $avx(x, _mm_cvtsi32_si128(n as i32)),
                     avx512: $avx512(x, _mm_cvtsi32_si128(n as i32))));
@@ -265,13 +268,13 @@ macro_rules! compare {
         #[inline(always)]
         pub fn $name(self, o: Self) -> Mask<I> {
             #[cfg(target_arch = "x86_64")]
-            return U8::new(regs!(I, f -> u, self.0, o.0, |x, y|
+            return U32s::new(regs!(I, f -> u, self.0, o.0, |x, y|
                 sse: _mm_castps_si128($sse(x, y)),
                 avx: _mm256_castps_si256(_mm256_cmp_ps::<$pred>(x, y)),
                 avx512: _mm512_movm_epi32(_mm512_cmp_ps_mask::<$pred>(x, y))));
             #[cfg(not(target_arch = "x86_64"))]
             {
-                let mut out = U8::default();
+                let mut out = U32s::default();
                 for i in 0..WIDTH {
                     out.0[i] = if self.0[i] $op o.0[i] { u32::MAX } else { 0 };
                 }
@@ -281,7 +284,7 @@ macro_rules! compare {
     };
 }
 
-impl<I: Isa> F8<I> {
+impl<I: Isa> F32s<I> {
     #[inline(always)]
     pub fn new(lanes: [f32; WIDTH]) -> Self {
         Self(lanes, PhantomData)
@@ -306,13 +309,13 @@ impl<I: Isa> F8<I> {
     /// `mask ? a : b` per lane, by bits.
     #[inline(always)]
     pub fn select(mask: Mask<I>, a: Self, b: Self) -> Self {
-        F8::from_bits(U8::select(mask, a.to_bits(), b.to_bits()))
+        F32s::from_bits(U32s::select(mask, a.to_bits(), b.to_bits()))
     }
 
     #[inline(always)]
     pub fn sqrt(self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return F8::new(regs!(I, f -> f, self.0, self.0, |x, _y|
+        return F32s::new(regs!(I, f -> f, self.0, self.0, |x, _y|
             sse: _mm_sqrt_ps(x), avx: _mm256_sqrt_ps(x), avx512: _mm512_sqrt_ps(x)));
         #[cfg(not(target_arch = "x86_64"))]
         self.map(f32::sqrt)
@@ -320,7 +323,7 @@ impl<I: Isa> F8<I> {
 
     #[inline(always)]
     pub fn abs(self) -> Self {
-        F8::from_bits(self.to_bits() & U8::splat(0x7fff_ffff))
+        F32s::from_bits(self.to_bits() & U32s::splat(0x7fff_ffff))
     }
 
     /// [`f32::max`] per lane (the non-NaN side wins), as LLVM lowers it on x86:
@@ -331,17 +334,17 @@ impl<I: Isa> F8<I> {
         self.extreme::<true>(o)
     }
 
-    /// [`f32::min`] per lane, as [`F8::max`].
+    /// [`f32::min`] per lane, as [`F32s::max`].
     #[inline(always)]
     pub fn min(self, o: Self) -> Self {
         self.extreme::<false>(o)
     }
 
-    /// [`F8::max`] (`MAX`) or [`F8::min`]: the two differ only in the instruction.
+    /// [`F32s::max`] (`MAX`) or [`F32s::min`]: the two differ only in the instruction.
     #[inline(always)]
     fn extreme<const MAX: bool>(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return F8::new(regs!(I, f -> f, self.0, o.0, |x, y|
+        return F32s::new(regs!(I, f -> f, self.0, o.0, |x, y|
         sse: {
             let nan = _mm_cmpunord_ps(x, x);
             let m = if MAX { _mm_max_ps(y, x) } else { _mm_min_ps(y, x) };
@@ -358,7 +361,7 @@ impl<I: Isa> F8<I> {
             _mm512_mask_blend_ps(nan, m, y)
         }));
         #[cfg(not(target_arch = "x86_64"))]
-        F8::new(std::array::from_fn(|i| {
+        F32s::new(std::array::from_fn(|i| {
             if MAX {
                 self.0[i].max(o.0[i])
             } else {
@@ -369,38 +372,38 @@ impl<I: Isa> F8<I> {
 
     /// `x as i32` of each lane, for |x| < 2³¹ (truncation towards zero), as bits.
     #[inline(always)]
-    pub fn trunc_i32(self) -> U8<I> {
+    pub fn trunc_i32(self) -> U32s<I> {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(regs!(I, f -> u, self.0, self.0, |x, _y|
+        return U32s::new(regs!(I, f -> u, self.0, self.0, |x, _y|
             sse: _mm_cvttps_epi32(x), avx: _mm256_cvttps_epi32(x),
             avx512: _mm512_cvttps_epi32(x)));
         #[cfg(not(target_arch = "x86_64"))]
-        U8::new(self.0.map(|x| x as i32 as u32))
+        U32s::new(self.0.map(|x| x as i32 as u32))
     }
 
     /// `x as f32` of each lane read as `i32`.
     #[inline(always)]
-    pub fn from_i32(x: U8<I>) -> Self {
+    pub fn from_i32(x: U32s<I>) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return F8::new(regs!(I, u -> f, x.0, x.0, |x, _y|
+        return F32s::new(regs!(I, u -> f, x.0, x.0, |x, _y|
             sse: _mm_cvtepi32_ps(x), avx: _mm256_cvtepi32_ps(x),
             avx512: _mm512_cvtepi32_ps(x)));
         #[cfg(not(target_arch = "x86_64"))]
-        F8::new(x.0.map(|x| x as i32 as f32))
+        F32s::new(x.0.map(|x| x as i32 as f32))
     }
 
     #[inline(always)]
-    pub fn to_bits(self) -> U8<I> {
-        U8::new(bits(self.0))
+    pub fn to_bits(self) -> U32s<I> {
+        U32s::new(bits(self.0))
     }
 
     #[inline(always)]
-    pub fn from_bits(b: U8<I>) -> Self {
-        F8::new(floats(b.0))
+    pub fn from_bits(b: U32s<I>) -> Self {
+        F32s::new(floats(b.0))
     }
 }
 
-impl<I: Isa> U8<I> {
+impl<I: Isa> U32s<I> {
     #[inline(always)]
     pub fn new(lanes: [u32; WIDTH]) -> Self {
         Self(lanes, PhantomData)
@@ -425,7 +428,7 @@ impl<I: Isa> U8<I> {
     #[inline(always)]
     pub fn wrapping_mul(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
+        return U32s::new(regs!(I, u -> u, self.0, o.0, |a, b|
             // SSE2 has no 32-bit low multiply: even and odd lanes' 64-bit products,
             // their low halves interleaved back.
             sse: {
@@ -439,39 +442,39 @@ impl<I: Isa> U8<I> {
             avx: _mm256_mullo_epi32(a, b),
             avx512: _mm512_mullo_epi32(a, b)));
         #[cfg(not(target_arch = "x86_64"))]
-        U8::new(std::array::from_fn(|i| self.0[i].wrapping_mul(o.0[i])))
+        U32s::new(std::array::from_fn(|i| self.0[i].wrapping_mul(o.0[i])))
     }
 
     #[inline(always)]
     pub fn wrapping_add(self, o: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
+        return U32s::new(regs!(I, u -> u, self.0, o.0, |a, b|
             sse: _mm_add_epi32(a, b), avx: _mm256_add_epi32(a, b),
             avx512: _mm512_add_epi32(a, b)));
         #[cfg(not(target_arch = "x86_64"))]
-        U8::new(std::array::from_fn(|i| self.0[i].wrapping_add(o.0[i])))
+        U32s::new(std::array::from_fn(|i| self.0[i].wrapping_add(o.0[i])))
     }
 
     /// Lanes where `self` and `o` are equal.
     #[inline(always)]
     pub fn eq(self, o: Self) -> Mask<I> {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
+        return U32s::new(regs!(I, u -> u, self.0, o.0, |a, b|
             sse: _mm_cmpeq_epi32(a, b), avx: _mm256_cmpeq_epi32(a, b),
             avx512: _mm512_movm_epi32(_mm512_cmpeq_epi32_mask(a, b))));
         #[cfg(not(target_arch = "x86_64"))]
-        U8::new(std::array::from_fn(|i| if self.0[i] == o.0[i] { u32::MAX } else { 0 }))
+        U32s::new(std::array::from_fn(|i| if self.0[i] == o.0[i] { u32::MAX } else { 0 }))
     }
 
     /// Lanes where `self > o`, both read as `i32`.
     #[inline(always)]
     pub fn gt_i32(self, o: Self) -> Mask<I> {
         #[cfg(target_arch = "x86_64")]
-        return U8::new(regs!(I, u -> u, self.0, o.0, |a, b|
+        return U32s::new(regs!(I, u -> u, self.0, o.0, |a, b|
             sse: _mm_cmpgt_epi32(a, b), avx: _mm256_cmpgt_epi32(a, b),
             avx512: _mm512_movm_epi32(_mm512_cmpgt_epi32_mask(a, b))));
         #[cfg(not(target_arch = "x86_64"))]
-        U8::new(std::array::from_fn(
+        U32s::new(std::array::from_fn(
             |i| if self.0[i] as i32 > o.0[i] as i32 { u32::MAX } else { 0 },
         ))
     }
@@ -484,7 +487,7 @@ impl<I: Isa> U8<I> {
     pub fn reverse_bits(self) -> Self {
         #[cfg(target_arch = "x86_64")]
         if I::LEVEL != Level::Sse2 {
-            return U8::new(regs!(I, u -> u, self.0, self.0, |x, _y|
+            return U32s::new(regs!(I, u -> u, self.0, self.0, |x, _y|
             sse: x,
             avx: {
                 let bytes = _mm256_broadcastsi128_si256(_mm_setr_epi8(
@@ -522,11 +525,14 @@ impl<I: Isa> U8<I> {
             }));
         }
         #[inline(always)]
-        fn swap<I: Isa>(x: U8<I>, n: u32, m: u32) -> U8<I> {
-            ((x >> n) & U8::splat(m)) | ((x & U8::splat(m)) << n)
+        fn swap<I: Isa>(x: U32s<I>, n: u32, m: u32) -> U32s<I> {
+            ((x >> n) & U32s::splat(m)) | ((x & U32s::splat(m)) << n)
         }
         let x = swap(swap(swap(self, 1, 0x5555_5555), 2, 0x3333_3333), 4, 0x0f0f_0f0f);
-        (x >> 24) | ((x >> 8) & U8::splat(0xff00)) | ((x << 8) & U8::splat(0x00ff_0000)) | (x << 24)
+        (x >> 24)
+            | ((x >> 8) & U32s::splat(0xff00))
+            | ((x << 8) & U32s::splat(0x00ff_0000))
+            | (x << 24)
     }
 
     /// `table[i]` for each lane's `i` (< 256).
@@ -535,7 +541,7 @@ impl<I: Isa> U8<I> {
         #[cfg(target_arch = "x86_64")]
         if I::LEVEL != Level::Sse2 {
             let t = table.as_ptr() as *const i32;
-            return U8::new(regs!(I, u -> u, index.0, index.0, |i, _y|
+            return U32s::new(regs!(I, u -> u, index.0, index.0, |i, _y|
                 sse: i,
                 avx: _mm256_i32gather_epi32::<4>(t, i),
                 avx512: _mm512_i32gather_epi32::<4>(i, t)));
@@ -544,20 +550,20 @@ impl<I: Isa> U8<I> {
         for (o, &i) in out.iter_mut().zip(&index.0) {
             *o = table[i as usize];
         }
-        U8::new(out)
+        U32s::new(out)
     }
 
     /// Each lane read as an integer below 2²⁴, converted exactly to `f32`.
     #[inline(always)]
-    pub fn to_f32(self) -> F8<I> {
-        F8::from_i32(self)
+    pub fn to_f32(self) -> F32s<I> {
+        F32s::from_i32(self)
     }
 
     /// Lane `i` true where bit `i` of `bits` is set.
     #[inline(always)]
     pub fn from_bitmask(bits: u32) -> Mask<I> {
-        let lane_bits = U8::new(std::array::from_fn(|i| 1 << i));
-        (U8::splat(bits) & lane_bits).eq(lane_bits)
+        let lane_bits = U32s::new(std::array::from_fn(|i| 1 << i));
+        (U32s::splat(bits) & lane_bits).eq(lane_bits)
     }
 
     /// Bit `i` set where lane `i` of a mask is true.
@@ -601,7 +607,7 @@ fn each<T: Copy>(mut x: [T; WIDTH], f: impl Fn(T) -> T) -> [T; WIDTH] {
     x
 }
 
-/// The bits of eight `f32`s ([`f32::to_bits`] of each, with no call that might stay out
+/// The bits of sixteen `f32`s ([`f32::to_bits`] of each, with no call that might stay out
 /// of line as `[T; N]::map` can).
 #[inline(always)]
 fn bits(x: [f32; WIDTH]) -> [u32; WIDTH] {
@@ -609,26 +615,26 @@ fn bits(x: [f32; WIDTH]) -> [u32; WIDTH] {
     unsafe { std::mem::transmute(x) }
 }
 
-/// [`f32::from_bits`] of eight `u32`s, as [`bits`].
+/// [`f32::from_bits`] of sixteen `u32`s, as [`bits`].
 #[inline(always)]
 fn floats(x: [u32; WIDTH]) -> [f32; WIDTH] {
     // SAFETY: same size, and every bit pattern is a valid `f32`.
     unsafe { std::mem::transmute(x) }
 }
 
-/// Eight 3-vectors, component by component, with glam's `Vec3` arithmetic (same
+/// Sixteen 3-vectors, component by component, with glam's `Vec3` arithmetic (same
 /// operations in the same order, so the same bits).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct V8<I> {
-    pub x: F8<I>,
-    pub y: F8<I>,
-    pub z: F8<I>,
+pub struct Vec3s<I> {
+    pub x: F32s<I>,
+    pub y: F32s<I>,
+    pub z: F32s<I>,
 }
 
-impl<I: Isa> V8<I> {
+impl<I: Isa> Vec3s<I> {
     #[inline(always)]
     pub fn splat(v: glam::Vec3) -> Self {
-        Self { x: F8::splat(v.x), y: F8::splat(v.y), z: F8::splat(v.z) }
+        Self { x: F32s::splat(v.x), y: F32s::splat(v.y), z: F32s::splat(v.z) }
     }
 
     #[inline(always)]
@@ -643,17 +649,17 @@ impl<I: Isa> V8<I> {
 
     /// `(x·x') + (y·y') + (z·z')`, as glam.
     #[inline(always)]
-    pub fn dot(self, o: Self) -> F8<I> {
+    pub fn dot(self, o: Self) -> F32s<I> {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
     #[inline(always)]
-    pub fn scale(self, s: F8<I>) -> Self {
+    pub fn scale(self, s: F32s<I>) -> Self {
         Self { x: self.x * s, y: self.y * s, z: self.z * s }
     }
 
     #[inline(always)]
-    pub fn div_by(self, s: F8<I>) -> Self {
+    pub fn div_by(self, s: F32s<I>) -> Self {
         Self { x: self.x / s, y: self.y / s, z: self.z / s }
     }
 
@@ -664,10 +670,10 @@ impl<I: Isa> V8<I> {
 
     /// glam's `max_element`: `max(x, max(y, z))` with `a > b ? a : b`.
     #[inline(always)]
-    pub fn max_element(self) -> F8<I> {
+    pub fn max_element(self) -> F32s<I> {
         #[inline(always)]
-        fn gt<I: Isa>(a: F8<I>, b: F8<I>) -> F8<I> {
-            F8::select(a.gt(b), a, b)
+        fn gt<I: Isa>(a: F32s<I>, b: F32s<I>) -> F32s<I> {
+            F32s::select(a.gt(b), a, b)
         }
         gt(self.x, gt(self.y, self.z))
     }
@@ -681,21 +687,21 @@ impl<I: Isa> V8<I> {
     #[inline(always)]
     pub fn select(mask: Mask<I>, a: Self, b: Self) -> Self {
         Self {
-            x: F8::select(mask, a.x, b.x),
-            y: F8::select(mask, a.y, b.y),
-            z: F8::select(mask, a.z, b.z),
+            x: F32s::select(mask, a.x, b.x),
+            y: F32s::select(mask, a.y, b.y),
+            z: F32s::select(mask, a.z, b.z),
         }
     }
 }
 
-/// A component-wise operator of `V8`.
+/// A component-wise operator of `Vec3s`.
 macro_rules! componentwise {
     ($trait:ident, $f:ident, $op:tt) => {
-        impl<I: Isa> $trait for V8<I> {
-            type Output = V8<I>;
+        impl<I: Isa> $trait for Vec3s<I> {
+            type Output = Vec3s<I>;
             #[inline(always)]
-            fn $f(self, o: V8<I>) -> V8<I> {
-                V8 { x: self.x $op o.x, y: self.y $op o.y, z: self.z $op o.z }
+            fn $f(self, o: Vec3s<I>) -> Vec3s<I> {
+                Vec3s { x: self.x $op o.x, y: self.y $op o.y, z: self.z $op o.z }
             }
         }
     };
@@ -705,11 +711,11 @@ componentwise!(Add, add, +);
 componentwise!(Sub, sub, -);
 componentwise!(Mul, mul, *);
 
-impl<I: Isa> Neg for V8<I> {
-    type Output = V8<I>;
+impl<I: Isa> Neg for Vec3s<I> {
+    type Output = Vec3s<I>;
     #[inline(always)]
-    fn neg(self) -> V8<I> {
-        V8 { x: -self.x, y: -self.y, z: -self.z }
+    fn neg(self) -> Vec3s<I> {
+        Vec3s { x: -self.x, y: -self.y, z: -self.z }
     }
 }
 
@@ -768,7 +774,7 @@ pub(crate) mod tests {
         // Opaque inputs: LLVM folds constant NaN-making operations (0/0, √-x) to a NaN
         // other than the one the hardware makes, and Rust leaves NaN bits unspecified.
         use std::hint::black_box;
-        let a = F8::<I>::new(black_box([
+        let a = F32s::<I>::new(black_box([
             0.5,
             -1.25,
             3.0,
@@ -786,7 +792,7 @@ pub(crate) mod tests {
             -3.0,
             0.25,
         ]));
-        let b = F8::<I>::new(black_box([
+        let b = F32s::<I>::new(black_box([
             2.0,
             4.0,
             -3.0,
@@ -823,19 +829,19 @@ pub(crate) mod tests {
             assert_eq!(a.le(b).0[i] != 0, x <= y);
             assert_eq!(a.gt(b).0[i] != 0, x > y);
             assert_eq!(a.eq(b).0[i] != 0, x == y);
-            let sel = F8::select(a.ge(b), a, b).0[i];
+            let sel = F32s::select(a.ge(b), a, b).0[i];
             assert_eq!(sel.to_bits(), if x >= y { x } else { y }.to_bits());
         }
-        let v = V8 { x: a, y: b, z: a * b };
+        let v = Vec3s { x: a, y: b, z: a * b };
         for i in 0..WIDTH {
             let s = v.lane(i);
             assert_eq!(v.dot(v).0[i].to_bits(), s.dot(s).to_bits(), "lane {i}");
             assert_eq!(v.max_element().0[i].to_bits(), s.max_element().to_bits(), "lane {i}");
         }
-        let m = U8::<I>::from_bitmask(0b1100_0101_1010_0110);
+        let m = U32s::<I>::from_bitmask(0b1100_0101_1010_0110);
         assert_eq!(m.bitmask(), 0b1100_0101_1010_0110);
-        assert_eq!(U8::<I>::splat(0x0000_0001).reverse_bits(), U8::splat(0x8000_0000));
-        let x = U8::<I>::new([
+        assert_eq!(U32s::<I>::splat(0x0000_0001).reverse_bits(), U32s::splat(0x8000_0000));
+        let x = U32s::<I>::new([
             0,
             1,
             0x8000_0000,
@@ -853,15 +859,15 @@ pub(crate) mod tests {
             0x8000_0001,
             0x5555_aaaa,
         ]);
-        let y = U8::<I>::new(std::array::from_fn(|i| {
+        let y = U32s::<I>::new(std::array::from_fn(|i| {
             [3, 0x9e37_79b9, 2, 0x7feb_352d, 0xffff_fffe, 5, 0x8000_0001, 11][i % 8] ^ (i as u32)
         }));
         let table: [u32; 256] =
             std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) ^ 0x55);
         let (rev, mul, add) = (x.reverse_bits(), x.wrapping_mul(y), x.wrapping_add(y));
-        let (shr, shl, gather) = (x >> 8, x << 3, U8::gather(&table, x & U8::splat(0xff)));
+        let (shr, shl, gather) = (x >> 8, x << 3, U32s::gather(&table, x & U32s::splat(0xff)));
         let (eq, gt) =
-            (x.eq(U8::select(U8::from_bitmask(0b0100_0000_0010_0000), x, !x)), x.gt_i32(y));
+            (x.eq(U32s::select(U32s::from_bitmask(0b0100_0000_0010_0000), x, !x)), x.gt_i32(y));
         let unit = (x >> 8).to_f32();
         for i in 0..WIDTH {
             let (a, b) = (x.0[i], y.0[i]);
@@ -874,13 +880,13 @@ pub(crate) mod tests {
             assert_eq!(unit.0[i].to_bits(), ((a >> 8) as f32).to_bits(), "lane {i}");
         }
         assert_eq!(eq.bitmask(), 0b0100_0000_0010_0000);
-        let t = F8::<I>::new(std::array::from_fn(|i| {
+        let t = F32s::<I>::new(std::array::from_fn(|i| {
             [0.4, -0.6, 2.9, -3.5, 1e6, -0.0, 7.0, -1e-3][i % 8] * if i < 8 { 1.0 } else { -3.0 }
         }));
         let k = t.trunc_i32();
         for i in 0..WIDTH {
             assert_eq!(k.0[i] as i32, t.0[i] as i32, "lane {i}");
-            assert_eq!(F8::<I>::from_i32(k).0[i], (t.0[i] as i32) as f32, "lane {i}");
+            assert_eq!(F32s::<I>::from_i32(k).0[i], (t.0[i] as i32) as f32, "lane {i}");
         }
     }
 

@@ -9,7 +9,7 @@
 //! Independent draws ("padding") give an unbounded number of dimensions while each
 //! 4-D group keeps its low discrepancy.
 
-use super::lanes::{Isa, F8, U8};
+use super::lanes::{F32s, Isa, U32s};
 
 /// Number of bits in a Sobol direction vector.
 const BITS: usize = 32;
@@ -194,54 +194,55 @@ impl SampleStream {
     }
 }
 
-/// [`SampleStream::next4`] of eight streams at once, each at its own draw: the same
+/// [`SampleStream::next4`] of sixteen streams at once, each at its own draw: the same
 /// integer steps lane by lane (so the same values), for the stream kernel.
 #[inline(always)]
 pub(crate) fn next4_lanes<I: Isa>(
-    pixel_seed: U8<I>,
-    index_reversed: U8<I>,
-    draw: U8<I>,
-) -> [F8<I>; 4] {
+    pixel_seed: U32s<I>,
+    index_reversed: U32s<I>,
+    draw: U32s<I>,
+) -> [F32s<I>; 4] {
     // Functions, not closures: a closure called several times may be outlined, and
     // outside the v3 build's function its lane intrinsics would not inline.
     #[inline(always)]
-    fn mix<I: Isa>(x: U8<I>) -> U8<I> {
+    fn mix<I: Isa>(x: U32s<I>) -> U32s<I> {
         let x = x ^ (x >> 16);
-        let x = x.wrapping_mul(U8::splat(0x7feb_352d));
+        let x = x.wrapping_mul(U32s::splat(0x7feb_352d));
         let x = x ^ (x >> 15);
-        let x = x.wrapping_mul(U8::splat(0x846c_a68b));
+        let x = x.wrapping_mul(U32s::splat(0x846c_a68b));
         x ^ (x >> 16)
     }
     #[inline(always)]
-    fn owen<I: Isa>(mut x: U8<I>, seed: U8<I>) -> U8<I> {
-        x = x ^ x.wrapping_mul(U8::splat(0x3d20_adea));
+    fn owen<I: Isa>(mut x: U32s<I>, seed: U32s<I>) -> U32s<I> {
+        x = x ^ x.wrapping_mul(U32s::splat(0x3d20_adea));
         x = x.wrapping_add(seed);
-        x = x.wrapping_mul((seed >> 16) | U8::splat(1));
-        x = x ^ x.wrapping_mul(U8::splat(0x0552_6c56));
-        x = x ^ x.wrapping_mul(U8::splat(0x53a2_2864));
+        x = x.wrapping_mul((seed >> 16) | U32s::splat(1));
+        x = x ^ x.wrapping_mul(U32s::splat(0x0552_6c56));
+        x = x ^ x.wrapping_mul(U32s::splat(0x53a2_2864));
         x.reverse_bits()
     }
     #[inline(always)]
-    fn unit<I: Isa>(x: U8<I>) -> F8<I> {
-        (x >> 8).to_f32() * F8::splat(1.0 / 16_777_216.0)
+    fn unit<I: Isa>(x: U32s<I>) -> F32s<I> {
+        (x >> 8).to_f32() * F32s::splat(1.0 / 16_777_216.0)
     }
     #[inline(always)]
-    fn sobol<I: Isa>(i: U8<I>, dim: usize) -> U8<I> {
+    fn sobol<I: Isa>(i: U32s<I>, dim: usize) -> U32s<I> {
         let t = &TABLES[dim];
-        let byte = U8::splat(0xff);
-        U8::gather(&t[0], i & byte)
-            ^ U8::gather(&t[1], (i >> 8) & byte)
-            ^ U8::gather(&t[2], (i >> 16) & byte)
-            ^ U8::gather(&t[3], i >> 24)
+        let byte = U32s::splat(0xff);
+        U32s::gather(&t[0], i & byte)
+            ^ U32s::gather(&t[1], (i >> 8) & byte)
+            ^ U32s::gather(&t[2], (i >> 16) & byte)
+            ^ U32s::gather(&t[3], i >> 24)
     }
     let seed =
-        mix(pixel_seed ^ mix(draw.wrapping_mul(U8::splat(0x9e37_79b9)) ^ U8::splat(0x68e3_1da4)));
+        mix(pixel_seed
+            ^ mix(draw.wrapping_mul(U32s::splat(0x9e37_79b9)) ^ U32s::splat(0x68e3_1da4)));
     let i = owen(index_reversed, seed);
     [
-        unit(owen(i, mix(seed ^ U8::splat(0xa511_e9b3)))),
-        unit(owen(sobol(i, 0), mix(seed ^ U8::splat(0x63d8_3595)))),
-        unit(owen(sobol(i, 1), mix(seed ^ U8::splat(0x9e1f_4a13)))),
-        unit(owen(sobol(i, 2), mix(seed ^ U8::splat(0x2c1b_3c6d)))),
+        unit(owen(i, mix(seed ^ U32s::splat(0xa511_e9b3)))),
+        unit(owen(sobol(i, 0), mix(seed ^ U32s::splat(0x63d8_3595)))),
+        unit(owen(sobol(i, 1), mix(seed ^ U32s::splat(0x9e1f_4a13)))),
+        unit(owen(sobol(i, 2), mix(seed ^ U32s::splat(0x2c1b_3c6d)))),
     ]
 }
 
@@ -318,7 +319,7 @@ mod tests {
             }
         }
         let lanes =
-            |f: fn(&SampleStream) -> u32| U8::<I>::new(std::array::from_fn(|l| f(&streams[l])));
+            |f: fn(&SampleStream) -> u32| U32s::<I>::new(std::array::from_fn(|l| f(&streams[l])));
         let got =
             next4_lanes(lanes(|s| s.pixel_seed), lanes(|s| s.index_reversed), lanes(|s| s.draw));
         for (l, s) in streams.iter_mut().enumerate() {

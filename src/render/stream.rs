@@ -1,7 +1,8 @@
-//! The stream kernel: eight camera paths advance side by side, their state held lane by
-//! lane (structure of arrays), and the shading of their diffuse vertices runs as
-//! eight-lane vector code: AVX2 registers in the x86-64-v3 build, two SSE2 halves in the
-//! baseline build ([`super::lanes`]). It is every build's kernel for every scene; the
+//! The stream kernel: sixteen camera paths advance side by side, their state held lane
+//! by lane (structure of arrays), and the shading of their diffuse and glossy vertices
+//! runs as sixteen-lane vector code: one AVX-512 register in the x86-64-v4 build, two
+//! AVX2 halves in the v3 build, four SSE2 quarters in the baseline build
+//! ([`super::lanes`]). It is every build's kernel for every scene; the
 //! one-path kernel it replaced (`integrator::trace_path`) is kept only as the reference
 //! the tests compare it with.
 //!
@@ -13,12 +14,13 @@
 //! visits the union of their nodes, which is why Embree's own answer for incoherent rays
 //! is one ray against a wide node (our [`super::accel`] traversal). Mitsuba's LLVM
 //! variant is a megakernel: one wide loop over paths whose every operation is a vector
-//! operation with masks. This kernel is that megakernel's shape at the width of one AVX
-//! register, with refill: eight lanes, each holding one path; a lane whose path ends
+//! operation with masks. This kernel is that megakernel's shape at the width of one
+//! AVX-512 register, with refill: sixteen lanes, each holding one path; a lane whose path ends
 //! takes the next (pixel, sample) of the job at once, so lanes stay busy until the job's
 //! tail; one that ends at its hit is refilled and its camera ray traced before the
 //! vector stage runs, which keeps that stage's lanes 99 % busy on the Cornell box (81 %
-//! when refilled only after it, 6 % fewer samples per second). Per bounce, each lane's
+//! when refilled only after it, 6 % fewer samples per second; both figures of eight
+//! lanes). Per bounce, each lane's
 //! ray (and the shadow ray its last vertex left) is traced on its own and the hit is
 //! resolved per lane (materials and textures are data-dependent,
 //! [`super::integrator::arrive`], shared with the one-path kernel); then every lane goes
@@ -60,7 +62,7 @@ use super::integrator::{
     arrive, camera_ray, scatter, trace, PathState, RenderStats, ShadowRay, Strategy, Surface,
     EMPTY_SAMPLE, RR_START_DEPTH,
 };
-use super::lanes::{Isa, Mask, F8, U8, V8, WIDTH};
+use super::lanes::{F32s, Isa, Mask, U32s, Vec3s, WIDTH};
 use super::lights::Lights;
 use super::sampler::{next4_lanes, SampleStream};
 use super::trig::sin_cos_lanes;
@@ -70,35 +72,35 @@ use super::{MaterialData, PixelSample, RenderScene};
 /// buffer, at the cost of a ragged tail of lanes per chunk.
 const CHUNK: usize = 256;
 
-/// Eight paths in flight, lane by lane.
+/// Sixteen paths in flight, lane by lane.
 #[derive(Default)]
 struct Group<I> {
-    o: V8<I>,
-    d: V8<I>,
-    throughput: V8<I>,
-    indirect: V8<I>,
-    prev_pdf: F8<I>,
-    depth: U8<I>,
+    o: Vec3s<I>,
+    d: Vec3s<I>,
+    throughput: Vec3s<I>,
+    indirect: Vec3s<I>,
+    prev_pdf: F32s<I>,
+    depth: U32s<I>,
     /// The sample streams' fields ([`SampleStream`]).
-    seed: U8<I>,
-    index: U8<I>,
-    draw: U8<I>,
+    seed: U32s<I>,
+    index: U32s<I>,
+    draw: U32s<I>,
     /// Lanes whose previous bounce was a delta choice (camera rays count as one).
     prev_delta: u32,
     /// The vertex each lane of the vector stage scatters at: position, geometric and
     /// shading normals (front side), albedo, and for glossy ones the coat's roughness
     /// and index of refraction.
-    p: V8<I>,
-    ng: V8<I>,
-    ns: V8<I>,
-    color: V8<I>,
-    alpha: F8<I>,
-    eta: F8<I>,
+    p: Vec3s<I>,
+    ng: Vec3s<I>,
+    ns: Vec3s<I>,
+    color: Vec3s<I>,
+    alpha: F32s<I>,
+    eta: F32s<I>,
     /// Pending shadow rays (lanes in `shadow`), traced with the lane's next ray.
-    sh_o: V8<I>,
-    sh_d: V8<I>,
-    sh_tmax: F8<I>,
-    sh_c: V8<I>,
+    sh_o: Vec3s<I>,
+    sh_d: Vec3s<I>,
+    sh_tmax: F32s<I>,
+    sh_c: Vec3s<I>,
     shadow: u32,
     /// Job (pixel × spp + sample) and G-buffer values of each lane's path.
     job: [usize; WIDTH],
@@ -360,76 +362,80 @@ fn scatter_lane<I: Isa>(
     alive
 }
 
-/// [`super::microfacet::Frame`] of eight normals: tangents `s`, `t`.
+/// [`super::microfacet::Frame`] of sixteen normals: tangents `s`, `t`.
 #[inline(always)]
-fn frame<I: Isa>(n: V8<I>) -> (V8<I>, V8<I>) {
-    let one = F8::splat(1.0);
-    let sign = F8::from_bits(one.to_bits() | (n.z.to_bits() & U8::splat(0x8000_0000)));
+fn frame<I: Isa>(n: Vec3s<I>) -> (Vec3s<I>, Vec3s<I>) {
+    let one = F32s::splat(1.0);
+    let sign = F32s::from_bits(one.to_bits() | (n.z.to_bits() & U32s::splat(0x8000_0000)));
     let a = -one / (sign + n.z);
     let b = n.x * n.y * a;
-    let s = V8 { x: one + sign * n.x * n.x * a, y: sign * b, z: -sign * n.x };
-    let t = V8 { x: b, y: sign + n.y * n.y * a, z: -n.y };
+    let s = Vec3s { x: one + sign * n.x * n.x * a, y: sign * b, z: -sign * n.x };
+    let t = Vec3s { x: b, y: sign + n.y * n.y * a, z: -n.y };
     (s, t)
 }
 
 /// [`super::integrator::offset`] in lanes.
 #[inline(always)]
-fn offset<I: Isa>(p: V8<I>, ng: V8<I>, dir: V8<I>) -> V8<I> {
-    let eps = F8::splat(1e-4) * (F8::splat(1.0) + p.abs().max_element());
-    V8::select(ng.dot(dir).ge(F8::splat(0.0)), p + ng.scale(eps), p - ng.scale(eps))
+fn offset<I: Isa>(p: Vec3s<I>, ng: Vec3s<I>, dir: Vec3s<I>) -> Vec3s<I> {
+    let eps = F32s::splat(1e-4) * (F32s::splat(1.0) + p.abs().max_element());
+    Vec3s::select(ng.dot(dir).ge(F32s::splat(0.0)), p + ng.scale(eps), p - ng.scale(eps))
 }
 
 /// [`super::microfacet::cosine_hemisphere`] in lanes.
 #[inline(always)]
-pub(super) fn cosine_hemisphere<I: Isa>(u1: F8<I>, u2: F8<I>) -> V8<I> {
+pub(super) fn cosine_hemisphere<I: Isa>(u1: F32s<I>, u2: F32s<I>) -> Vec3s<I> {
     use std::f32::consts::PI;
-    let (one, zero) = (F8::splat(1.0), F8::splat(0.0));
-    let (ax, ay) = (F8::splat(2.0) * u1 - one, F8::splat(2.0) * u2 - one);
+    let (one, zero) = (F32s::splat(1.0), F32s::splat(0.0));
+    let (ax, ay) = (F32s::splat(2.0) * u1 - one, F32s::splat(2.0) * u2 - one);
     let centre = ax.eq(zero) & ay.eq(zero);
     let x_major = ax.abs().gt(ay.abs());
-    let r = F8::select(x_major, ax, ay);
-    let phi = F8::select(
+    let r = F32s::select(x_major, ax, ay);
+    let phi = F32s::select(
         x_major,
-        F8::splat(PI / 4.0) * (ay / ax),
-        F8::splat(PI / 2.0) - F8::splat(PI / 4.0) * (ax / ay),
+        F32s::splat(PI / 4.0) * (ay / ax),
+        F32s::splat(PI / 2.0) - F32s::splat(PI / 4.0) * (ax / ay),
     );
     let (s, c) = sin_cos_lanes(phi);
     let (x, y) = (r * c, r * s);
     let z = (one - x * x - y * y).max(zero).sqrt();
-    V8::select(centre, V8 { x: zero, y: zero, z: one }, V8 { x, y, z })
+    Vec3s::select(centre, Vec3s { x: zero, y: zero, z: one }, Vec3s { x, y, z })
 }
 
 /// Power heuristic with β = 2 in lanes.
 #[inline(always)]
-fn mis8<I: Isa>(a: F8<I>, b: F8<I>) -> F8<I> {
+fn mis8<I: Isa>(a: F32s<I>, b: F32s<I>) -> F32s<I> {
     let (a2, b2) = (a * a, b * b);
-    let zero = F8::splat(0.0);
-    F8::select((a2 + b2).gt(zero), a2 / (a2 + b2), zero)
+    let zero = F32s::splat(0.0);
+    F32s::select((a2 + b2).gt(zero), a2 / (a2 + b2), zero)
 }
 
-/// Eight lanes' light samples.
+/// Sixteen lanes' light samples.
 struct LightSamples<I> {
-    wi: V8<I>,
-    dist: F8<I>,
-    radiance: V8<I>,
+    wi: Vec3s<I>,
+    dist: F32s<I>,
+    radiance: Vec3s<I>,
     /// Solid-angle pdf.
-    pdf: F8<I>,
+    pdf: F32s<I>,
     /// Lanes where a sample was drawn.
     sampled: Mask<I>,
 }
 
-/// Light samples of eight lanes in a scene lit by area emitters only, as
+/// Light samples of sixteen lanes in a scene lit by area emitters only, as
 /// [`super::lights::Lights::sample`] draws them: an emitter by power, then a point on
 /// it.
 #[inline(always)]
-fn sample_area_lanes<I: Isa>(lights: &Lights, p: V8<I>, u_light: &[F8<I>; 4]) -> LightSamples<I> {
-    let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
-    let mut v0 = V8::default();
-    let mut e1 = V8::default();
-    let mut e2 = V8::default();
-    let mut normal = V8::default();
-    let mut radiance = V8::default();
-    let mut parallelogram = U8::default();
+fn sample_area_lanes<I: Isa>(
+    lights: &Lights,
+    p: Vec3s<I>,
+    u_light: &[F32s<I>; 4],
+) -> LightSamples<I> {
+    let (zero, one) = (F32s::splat(0.0), F32s::splat(1.0));
+    let mut v0 = Vec3s::default();
+    let mut e1 = Vec3s::default();
+    let mut e2 = Vec3s::default();
+    let mut normal = Vec3s::default();
+    let mut radiance = Vec3s::default();
+    let mut parallelogram = U32s::default();
     for l in 0..WIDTH {
         let a = &lights.areas[lights.pick_area(lights.area_u(u_light[0].0[l], 0))];
         v0.set_lane(l, a.v0);
@@ -440,8 +446,8 @@ fn sample_area_lanes<I: Isa>(lights: &Lights, p: V8<I>, u_light: &[F8<I>; 4]) ->
         parallelogram.0[l] = if a.parallelogram { u32::MAX } else { 0 };
     }
     let r = u_light[1].sqrt();
-    let s = F8::select(parallelogram, u_light[1], one - r);
-    let t = F8::select(parallelogram, u_light[2], u_light[2] * r);
+    let s = F32s::select(parallelogram, u_light[1], one - r);
+    let t = F32s::select(parallelogram, u_light[2], u_light[2] * r);
     let q = v0 + e1.scale(s) + e2.scale(t);
     let d = q - p;
     let dist2 = d.dot(d);
@@ -449,8 +455,8 @@ fn sample_area_lanes<I: Isa>(lights: &Lights, p: V8<I>, u_light: &[F8<I>; 4]) ->
     let wi = d.div_by(dist);
     let cos_light = -wi.dot(normal);
     let sampled = !(cos_light.le(zero) | dist2.eq(zero));
-    let per_area = (radiance.x + radiance.y + radiance.z) / F8::splat(lights.area_power);
-    let light_pdf = F8::splat(lights.strategy_pmf) * per_area * dist2 / cos_light;
+    let per_area = (radiance.x + radiance.y + radiance.z) / F32s::splat(lights.area_power);
+    let light_pdf = F32s::splat(lights.strategy_pmf) * per_area * dist2 / cos_light;
     LightSamples { wi, dist, radiance, pdf: light_pdf, sampled }
 }
 
@@ -460,12 +466,12 @@ fn sample_area_lanes<I: Isa>(lights: &Lights, p: V8<I>, u_light: &[F8<I>; 4]) ->
 #[inline(always)]
 fn sample_lights_per_lane<I: Isa>(
     lights: &Lights,
-    p: V8<I>,
-    u_light: &[F8<I>; 4],
+    p: Vec3s<I>,
+    u_light: &[F32s<I>; 4],
     group: u32,
 ) -> LightSamples<I> {
-    let (mut wi, mut dist, mut radiance) = (V8::default(), F8::splat(0.0), V8::default());
-    let (mut pdf, mut sampled) = (F8::splat(0.0), 0u32);
+    let (mut wi, mut dist, mut radiance) = (Vec3s::default(), F32s::splat(0.0), Vec3s::default());
+    let (mut pdf, mut sampled) = (F32s::splat(0.0), 0u32);
     let mut left = group;
     while left != 0 {
         let l = left.trailing_zeros() as usize;
@@ -479,7 +485,7 @@ fn sample_lights_per_lane<I: Isa>(
             sampled |= 1 << l;
         }
     }
-    LightSamples { wi, dist, radiance, pdf, sampled: U8::from_bitmask(sampled) }
+    LightSamples { wi, dist, radiance, pdf, sampled: U32s::from_bitmask(sampled) }
 }
 
 /// Whether a vertex of this material takes the vector stage (with next-event estimation).
@@ -502,31 +508,31 @@ fn scatter_vector<I: Isa>(
 ) -> u32 {
     use std::f32::consts::FRAC_1_PI;
     let lights = &scene.lights;
-    let zero = F8::splat(0.0);
-    let gm = U8::from_bitmask(group);
+    let zero = F32s::splat(0.0);
+    let gm = U32s::from_bitmask(group);
 
     let u_light = next4_lanes(g.seed, g.index, g.draw);
-    let u = next4_lanes(g.seed, g.index, g.draw.wrapping_add(U8::splat(1)));
+    let u = next4_lanes(g.seed, g.index, g.draw.wrapping_add(U32s::splat(1)));
 
     // Two-sided: flip the normals to the viewer's side, then the shading frame (the
     // geometric one where the shading normal faces away).
     let wo_world = -g.d;
     let flip = g.ng.dot(wo_world).lt(zero);
-    let ng = V8::select(flip, -g.ng, g.ng);
-    let ns = V8::select(flip, -g.ns, g.ns);
+    let ng = Vec3s::select(flip, -g.ng, g.ng);
+    let ns = Vec3s::select(flip, -g.ns, g.ns);
     let (s1, t1) = frame(ns);
-    let wo1 = V8 { x: wo_world.dot(s1), y: wo_world.dot(t1), z: wo_world.dot(ns) };
+    let wo1 = Vec3s { x: wo_world.dot(s1), y: wo_world.dot(t1), z: wo_world.dot(ns) };
     let (s2, t2) = frame(ng);
-    let wo2 = V8 { x: wo_world.dot(s2), y: wo_world.dot(t2), z: wo_world.dot(ng) };
+    let wo2 = Vec3s { x: wo_world.dot(s2), y: wo_world.dot(t2), z: wo_world.dot(ng) };
     let geo = wo1.z.le(zero);
-    let fs = V8::select(geo, s2, s1);
-    let ft = V8::select(geo, t2, t1);
-    let fn_ = V8::select(geo, ng, ns);
-    let wo = V8::select(geo, wo2, wo1);
+    let fs = Vec3s::select(geo, s2, s1);
+    let ft = Vec3s::select(geo, t2, t1);
+    let fn_ = Vec3s::select(geo, ng, ns);
+    let wo = Vec3s::select(geo, wo2, wo1);
     let p = g.p;
     let color = g.color;
     let coated = Glossy { alpha: g.alpha, eta: g.eta, color };
-    let glossy_mask = U8::from_bitmask(glossy);
+    let glossy_mask = U32s::from_bitmask(glossy);
     let seen = (glossy != 0).then(|| coated.seen_from(wo));
 
     let LightSamples { wi, dist, radiance, pdf: light_pdf, sampled } = if lights.area_only() {
@@ -536,31 +542,31 @@ fn scatter_vector<I: Isa>(
     };
 
     // The BSDF's value and pdf there.
-    let wl = V8 { x: wi.dot(fs), y: wi.dot(ft), z: wi.dot(fn_) };
+    let wl = Vec3s { x: wi.dot(fs), y: wi.dot(ft), z: wi.dot(fn_) };
     let above = !(wl.z.le(zero) | wo.z.le(zero));
-    let cos_pi = wl.z * F8::splat(FRAC_1_PI);
-    let mut f = V8::select(above, color.scale(cos_pi), V8::default());
-    let mut bsdf_pdf = F8::select(above, cos_pi, zero);
+    let cos_pi = wl.z * F32s::splat(FRAC_1_PI);
+    let mut f = Vec3s::select(above, color.scale(cos_pi), Vec3s::default());
+    let mut bsdf_pdf = F32s::select(above, cos_pi, zero);
     if let Some(seen) = &seen {
         let (fg, pdf_g) = coated.eval(seen, wl);
-        f = V8::select(glossy_mask, fg, f);
-        bsdf_pdf = F8::select(glossy_mask, pdf_g, bsdf_pdf);
+        f = Vec3s::select(glossy_mask, fg, f);
+        bsdf_pdf = F32s::select(glossy_mask, pdf_g, bsdf_pdf);
     }
-    let lit = gm & sampled & !(f.eq(V8::default()) | radiance.eq(V8::default()));
+    let lit = gm & sampled & !(f.eq(Vec3s::default()) | radiance.eq(Vec3s::default()));
 
     let origin = offset(p, ng, wi);
-    let tmax = F8::select(
-        dist.abs().lt(F8::splat(f32::INFINITY)),
-        (dist * F8::splat(1.0 - 1e-3)).max(zero),
-        F8::splat(f32::INFINITY),
+    let tmax = F32s::select(
+        dist.abs().lt(F32s::splat(f32::INFINITY)),
+        (dist * F32s::splat(1.0 - 1e-3)).max(zero),
+        F32s::splat(f32::INFINITY),
     );
     let fl = f * radiance;
-    let c = V8::select(light_pdf.eq(zero), fl, fl.scale(mis8(light_pdf, bsdf_pdf) / light_pdf));
+    let c = Vec3s::select(light_pdf.eq(zero), fl, fl.scale(mis8(light_pdf, bsdf_pdf) / light_pdf));
     let mut throughput = g.throughput;
-    g.sh_o = V8::select(lit, origin, g.sh_o);
-    g.sh_d = V8::select(lit, wi, g.sh_d);
-    g.sh_tmax = F8::select(lit, tmax, g.sh_tmax);
-    g.sh_c = V8::select(lit, throughput * c, g.sh_c);
+    g.sh_o = Vec3s::select(lit, origin, g.sh_o);
+    g.sh_d = Vec3s::select(lit, wi, g.sh_d);
+    g.sh_tmax = F32s::select(lit, tmax, g.sh_tmax);
+    g.sh_c = Vec3s::select(lit, throughput * c, g.sh_c);
     let lit = lit.bitmask();
     g.shadow |= lit;
     *rays += lit.count_ones() as u64;
@@ -569,32 +575,32 @@ fn scatter_vector<I: Isa>(
     // value over their pdf, where that is positive), then Russian roulette.
     let mut alive = !wo.z.le(zero);
     let mut wi = cosine_hemisphere(u[1], u[2]);
-    let mut pdf = wi.z * F8::splat(FRAC_1_PI);
+    let mut pdf = wi.z * F32s::splat(FRAC_1_PI);
     let mut weight = color;
     if let Some(seen) = &seen {
         let wg = coated.sample(seen, [u[0], u[1], u[2]], wi);
         let (fg, pdf_g) = coated.eval(seen, wg);
         alive = alive & !(glossy_mask & !pdf_g.gt(zero));
-        wi = V8::select(glossy_mask, wg, wi);
-        pdf = F8::select(glossy_mask, pdf_g, pdf);
-        weight = V8::select(glossy_mask, fg.div_by(pdf_g), weight);
+        wi = Vec3s::select(glossy_mask, wg, wi);
+        pdf = F32s::select(glossy_mask, pdf_g, pdf);
+        weight = Vec3s::select(glossy_mask, fg.div_by(pdf_g), weight);
     }
     let dir = fs.scale(wi.x) + ft.scale(wi.y) + fn_.scale(wi.z);
     throughput = throughput * weight;
     let o = offset(p, ng, dir);
-    let depth = g.depth.wrapping_add(U8::splat(1));
-    let roulette = depth.gt_i32(U8::splat(RR_START_DEPTH));
-    let rq = throughput.max_element().min(F8::splat(0.95));
+    let depth = g.depth.wrapping_add(U32s::splat(1));
+    let roulette = depth.gt_i32(U32s::splat(RR_START_DEPTH));
+    let rq = throughput.max_element().min(F32s::splat(0.95));
     let killed = roulette & u[3].ge(rq);
-    throughput = V8::select(roulette, throughput.div_by(rq), throughput);
-    let live: Mask<I> = alive & !killed & !throughput.eq(V8::default());
+    throughput = Vec3s::select(roulette, throughput.div_by(rq), throughput);
+    let live: Mask<I> = alive & !killed & !throughput.eq(Vec3s::default());
 
-    g.draw = U8::select(gm, g.draw.wrapping_add(U8::splat(2)), g.draw);
-    g.throughput = V8::select(gm, throughput, g.throughput);
-    g.prev_pdf = F8::select(gm, pdf, g.prev_pdf);
+    g.draw = U32s::select(gm, g.draw.wrapping_add(U32s::splat(2)), g.draw);
+    g.throughput = Vec3s::select(gm, throughput, g.throughput);
+    g.prev_pdf = F32s::select(gm, pdf, g.prev_pdf);
     g.prev_delta &= !group;
-    g.o = V8::select(gm, o, g.o);
-    g.d = V8::select(gm, dir, g.d);
-    g.depth = U8::select(gm, depth, g.depth);
+    g.o = Vec3s::select(gm, o, g.o);
+    g.d = Vec3s::select(gm, dir, g.d);
+    g.depth = U32s::select(gm, depth, g.depth);
     group & !live.bitmask()
 }

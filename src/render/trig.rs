@@ -7,7 +7,7 @@
 //! then degree-7 and degree-8 polynomials on |r| ≤ π/4; about 1e-7 absolute error, and
 //! the same bits in every build, as every operation is a single IEEE add or multiply.
 
-use super::lanes::{Isa, F8, U8};
+use super::lanes::{F32s, Isa, U32s};
 
 /// (sin x, cos x) for |x| up to a few thousand (the kernel's angles are within ±2π).
 #[inline(always)]
@@ -34,32 +34,32 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
     (f32::from_bits(sin ^ sin_sign), f32::from_bits(cos ^ cos_sign))
 }
 
-/// [`sin_cos`] of eight lanes: the same operations lane by lane, so the same bits.
+/// [`sin_cos`] of sixteen lanes: the same operations lane by lane, so the same bits.
 #[inline(always)]
-pub fn sin_cos_lanes<I: Isa>(x: F8<I>) -> (F8<I>, F8<I>) {
+pub fn sin_cos_lanes<I: Isa>(x: F32s<I>) -> (F32s<I>, F32s<I>) {
     const FRAC_2_PI: f32 = std::f32::consts::FRAC_2_PI;
     const P1: f32 = 1.570_312_5;
     const P2: f32 = 4.837_513e-4;
     const P3: f32 = 7.549_79e-8;
-    let half = F8::select(x.ge(F8::splat(0.0)), F8::splat(0.5), F8::splat(-0.5));
-    let t = x * F8::splat(FRAC_2_PI) + half;
+    let half = F32s::select(x.ge(F32s::splat(0.0)), F32s::splat(0.5), F32s::splat(-0.5));
+    let t = x * F32s::splat(FRAC_2_PI) + half;
     // Lanes whose angle is NaN get another `k` than `as i32` gives; their values are
     // NaN either way.
     let k = t.trunc_i32();
-    let kf = F8::from_i32(k);
-    let r = ((x - kf * F8::splat(P1)) - kf * F8::splat(P2)) - kf * F8::splat(P3);
+    let kf = F32s::from_i32(k);
+    let r = ((x - kf * F32s::splat(P1)) - kf * F32s::splat(P2)) - kf * F32s::splat(P3);
     let z = r * r;
-    let c = |x: f32| F8::splat(x);
+    let c = |x: f32| F32s::splat(x);
     let s = r + r * z * (c(-1.666_665_5e-1) + z * (c(8.332_161e-3) + z * c(-1.951_529_6e-4)));
     let co = c(1.0) - c(0.5) * z
         + z * z * (c(4.166_664_6e-2) + z * (c(-1.388_731_6e-3) + z * c(2.443_315_7e-5)));
     let (sb, cb) = (s.to_bits(), co.to_bits());
-    let swap = (k & U8::splat(1)).eq(U8::splat(1));
+    let swap = (k & U32s::splat(1)).eq(U32s::splat(1));
     let sin = (sb & !swap) | (cb & swap);
     let cos = (cb & !swap) | (sb & swap);
-    let sin_sign = (k & U8::splat(2)) << 30;
-    let cos_sign = (k.wrapping_add(U8::splat(1)) & U8::splat(2)) << 30;
-    (F8::from_bits(sin ^ sin_sign), F8::from_bits(cos ^ cos_sign))
+    let sin_sign = (k & U32s::splat(2)) << 30;
+    let cos_sign = (k.wrapping_add(U32s::splat(1)) & U32s::splat(2)) << 30;
+    (F32s::from_bits(sin ^ sin_sign), F32s::from_bits(cos ^ cos_sign))
 }
 
 #[cfg(test)]
@@ -88,7 +88,7 @@ mod tests {
 
     fn lanes<I: Isa>() {
         for i in -200..200 {
-            let x = F8::<I>::new(std::array::from_fn(|l| {
+            let x = F32s::<I>::new(std::array::from_fn(|l| {
                 (i * WIDTH as i32 + l as i32) as f32 * 0.0123
             }));
             let (s, c) = sin_cos_lanes(x);

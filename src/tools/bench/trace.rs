@@ -83,10 +83,10 @@ pub struct TraceReport {
     pub node_lane_occupancy: f64,
     /// Share of the four lanes of a leaf's triangle test that hold a triangle.
     pub leaf_lane_occupancy: f64,
-    /// The kernel build that rendered: `x86-64-v4` (the v3 code with AVX-512 enabled),
-    /// `x86-64-v3` (paths in AVX2 lanes) or `baseline` (SSE2 lanes, every x86-64 CPU).
+    /// The kernel build that rendered: `x86-64-v4` (paths in AVX-512 lanes), `x86-64-v3`
+    /// (AVX2 lanes) or `baseline` (SSE2 lanes, every x86-64 CPU).
     pub build: &'static str,
-    /// Share of the eight lanes that held a vertex each time the stream kernel's vector
+    /// Share of the sixteen lanes that held a vertex each time the stream kernel's vector
     /// shading stage ran (null where the stage never ran).
     pub vector_lane_occupancy: Option<f64>,
     /// Share of path vertices shaded by the vector stage rather than the
