@@ -24,10 +24,12 @@
 //!
 //! Why sixteen lanes in every build: the width is a constant of every stage's code
 //! (sample draws, light sampling, the BSDFs, roulette), and one width keeps one source
-//! for all builds. Sixteen is one AVX-512 register; on AVX2 the two halves measured as
-//! fast as the eight lanes of one register did (paired medians of 5 alternating rounds on
-//! an AMD EPYC Zen 4, v3 build: Cornell box 1.01×, bunny 1.01×, Sponza 1.01×), the halves'
-//! independent chains covering the latency that their doubled register pressure costs.
+//! for all builds. Sixteen is one AVX-512 register; the narrower builds' two AVX2 halves
+//! or four SSE2 quarters measured as fast as their eight lanes did (AMD EPYC Zen 4,
+//! paired medians of alternating rounds, Cornell box / bunny / Sponza: v3 build 1.01× /
+//! 1.01× / 1.01× and 1.03× / 0.99× / 1.00× in two series of 5; baseline build 1.01× /
+//! 0.98× / 0.99× over 12), the parts' independent chains covering the latency that their
+//! extra register pressure costs.
 //! An earlier x86-64-v4 build of the eight-lane code (EVEX encoding, 32 registers, mask
 //! registers, no wider lanes) gave no speed on an Intel Xeon (1.01×, 1.01×, 0.99× the v3
 //! build); the speed of the sixteen-lane v4 build is in [`super::stream`].
