@@ -195,7 +195,8 @@ macro_rules! regs {
 /// A binary operator: one instruction per register (AVX-512, AVX2 or SSE2), the scalar
 /// `$op` lane by lane off x86-64.
 macro_rules! lanewise {
-    ($ty:ident, $kind:ident, $trait:ident, $f:ident, $op:tt, $sse:ident, $avx:ident, $avx512:ident) => {
+    ($ty:ident, $kind:ident, $trait:ident, $f:ident, $op:tt,
+     $sse:ident, $avx:ident, $avx512:ident) => {
         impl<I: Isa> $trait for $ty<I> {
             type Output = $ty<I>;
             #[inline(always)]
@@ -405,6 +406,21 @@ impl<I: Isa> F32s<I> {
     }
 }
 
+/// Shuffle controls of [`U32s::reverse_bits`], per 128-bit lane: each 32-bit lane's
+/// bytes in reverse order, and each nibble's bits reversed.
+#[cfg(target_arch = "x86_64")]
+const REVERSE_BYTES: [u8; 16] = [3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12];
+#[cfg(target_arch = "x86_64")]
+const REVERSE_NIBBLES: [u8; 16] = [0, 8, 4, 12, 2, 10, 6, 14, 1, 9, 5, 13, 3, 11, 7, 15];
+
+/// A 16-byte table as an SSE register.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn table(t: &[u8; 16]) -> std::arch::x86_64::__m128i {
+    // SAFETY: same size, any bits are a valid value of either.
+    unsafe { std::mem::transmute(*t) }
+}
+
 impl<I: Isa> U32s<I> {
     #[inline(always)]
     pub fn new(lanes: [u32; WIDTH]) -> Self {
@@ -492,37 +508,21 @@ impl<I: Isa> U32s<I> {
             return U32s::new(regs!(I, u -> u, self.0, self.0, |x, _y|
             sse: x,
             avx: {
-                let bytes = _mm256_broadcastsi128_si256(_mm_setr_epi8(
-                    3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12,
-                ));
-                let nibbles = _mm256_broadcastsi128_si256(_mm_setr_epi8(
-                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb,
-                    0x7, 0xf,
-                ));
-                let low = _mm256_set1_epi8(0x0f);
-                let x = _mm256_shuffle_epi8(x, bytes);
+                let bytes = _mm256_broadcastsi128_si256(table(&REVERSE_BYTES));
+                let nibbles = _mm256_broadcastsi128_si256(table(&REVERSE_NIBBLES));
+                let (low, x) = (_mm256_set1_epi8(0x0f), _mm256_shuffle_epi8(x, bytes));
                 let lo = _mm256_shuffle_epi8(nibbles, _mm256_and_si256(x, low));
-                let hi = _mm256_shuffle_epi8(
-                    nibbles,
-                    _mm256_and_si256(_mm256_srli_epi16::<4>(x), low),
-                );
+                let high = _mm256_and_si256(_mm256_srli_epi16::<4>(x), low);
+                let hi = _mm256_shuffle_epi8(nibbles, high);
                 _mm256_or_si256(_mm256_slli_epi16::<4>(lo), hi)
             },
             avx512: {
-                let bytes = _mm512_broadcast_i32x4(_mm_setr_epi8(
-                    3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12,
-                ));
-                let nibbles = _mm512_broadcast_i32x4(_mm_setr_epi8(
-                    0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb,
-                    0x7, 0xf,
-                ));
-                let low = _mm512_set1_epi8(0x0f);
-                let x = _mm512_shuffle_epi8(x, bytes);
+                let bytes = _mm512_broadcast_i32x4(table(&REVERSE_BYTES));
+                let nibbles = _mm512_broadcast_i32x4(table(&REVERSE_NIBBLES));
+                let (low, x) = (_mm512_set1_epi8(0x0f), _mm512_shuffle_epi8(x, bytes));
                 let lo = _mm512_shuffle_epi8(nibbles, _mm512_and_si512(x, low));
-                let hi = _mm512_shuffle_epi8(
-                    nibbles,
-                    _mm512_and_si512(_mm512_srli_epi16::<4>(x), low),
-                );
+                let high = _mm512_and_si512(_mm512_srli_epi16::<4>(x), low);
+                let hi = _mm512_shuffle_epi8(nibbles, high);
                 _mm512_or_si512(_mm512_slli_epi16::<4>(lo), hi)
             }));
         }
