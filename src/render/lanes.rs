@@ -506,7 +506,7 @@ impl<I: Isa> U32s<I> {
         #[cfg(target_arch = "x86_64")]
         if I::LEVEL != Level::Sse2 {
             return U32s::new(regs!(I, u -> u, self.0, self.0, |x, _y|
-            sse: x,
+            sse: x, // never taken: SSE2 lanes take the shifts below
             avx: {
                 let bytes = _mm256_broadcastsi128_si256(table(&REVERSE_BYTES));
                 let nibbles = _mm256_broadcastsi128_si256(table(&REVERSE_NIBBLES));
@@ -544,7 +544,7 @@ impl<I: Isa> U32s<I> {
         if I::LEVEL != Level::Sse2 {
             let t = table.as_ptr() as *const i32;
             return U32s::new(regs!(I, u -> u, index.0, index.0, |i, _y|
-                sse: i,
+                sse: i, // never taken: SSE2 lanes take the loop below
                 avx: _mm256_i32gather_epi32::<4>(t, i),
                 avx512: _mm512_i32gather_epi32::<4>(i, t)));
         }

@@ -411,7 +411,7 @@ pub(super) fn cosine_hemisphere<I: Isa>(u1: F32s<I>, u2: F32s<I>) -> Vec3s<I> {
 
 /// Power heuristic with β = 2 in lanes.
 #[inline(always)]
-fn mis8<I: Isa>(a: F32s<I>, b: F32s<I>) -> F32s<I> {
+fn mis_lanes<I: Isa>(a: F32s<I>, b: F32s<I>) -> F32s<I> {
     let (a2, b2) = (a * a, b * b);
     let zero = F32s::splat(0.0);
     F32s::select((a2 + b2).gt(zero), a2 / (a2 + b2), zero)
@@ -569,7 +569,8 @@ fn scatter_vector<I: Isa>(
         F32s::splat(f32::INFINITY),
     );
     let fl = f * radiance;
-    let c = Vec3s::select(light_pdf.eq(zero), fl, fl.scale(mis8(light_pdf, bsdf_pdf) / light_pdf));
+    let c =
+        Vec3s::select(light_pdf.eq(zero), fl, fl.scale(mis_lanes(light_pdf, bsdf_pdf) / light_pdf));
     let mut throughput = g.throughput;
     g.sh_o = Vec3s::select(lit, origin, g.sh_o);
     g.sh_d = Vec3s::select(lit, wi, g.sh_d);
