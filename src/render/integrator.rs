@@ -110,14 +110,13 @@ fn resolve<'a>(
     let hit = hit?;
     let inst = &scene.tlas.instances[hit.instance as usize];
     let blas = &*inst.blas;
-    let tri = blas.tri(hit.prim);
     let leaf = blas.leaf(hit.prim);
     let mesh = &*blas.mesh;
     let material_id = scene.slot_materials[(inst.material_base + leaf.slot) as usize];
     let material = &scene.materials[material_id as usize];
     let (u, v) = (hit.u, hit.v);
     let w = 1.0 - u - v;
-    let ng = Vec3::from(inst.normal_to_world * tri.e1.cross(tri.e2)).normalize();
+    let ng = scene.tlas.geometric_normal(&hit);
     // Vertex data is read only where it can change the result.
     let idx =
         (!leaf.flat || material.texture.is_some()).then(|| mesh.indices[leaf.original as usize]);
@@ -267,13 +266,10 @@ pub(super) fn trace<L: Lanes>(
     hit
 }
 
-/// A path's camera ray through `pixel_pos`, from its sample stream's first draw.
-#[inline(always)]
-pub(super) fn camera_ray(
-    scene: &RenderScene,
-    stream: &mut SampleStream,
-    pixel_pos: Vec2,
-) -> (Vec3, Vec3) {
+/// A path's camera ray through `pixel_pos`, from its sample stream's first draw (the
+/// stream kernel makes sixteen at once, `stream::Group::start`).
+#[cfg(test)]
+fn camera_ray(scene: &RenderScene, stream: &mut SampleStream, pixel_pos: Vec2) -> (Vec3, Vec3) {
     let cam = stream.next4();
     scene.camera.ray(pixel_pos + Vec2::new(cam[0], cam[1]), Vec2::new(cam[2], cam[3]))
 }
@@ -819,6 +815,8 @@ mod tests {
                 map: None,
                 rotation_deg: 0.0,
             });
+            // A thin lens in half the cases: camera rays are lane code too.
+            state.camera.aperture = if environment { 0.05 } else { 0.0 };
             let scene = RenderScene::new(assets, &state).unwrap();
             assert_eq!(scene.lights.area_only(), !environment);
             let pixels: Vec<u32> = (0..40 * 30).collect();

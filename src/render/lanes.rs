@@ -665,6 +665,12 @@ impl<I: Isa> Vec3s<I> {
         Self { x: self.x / s, y: self.y / s, z: self.z / s }
     }
 
+    /// glam's `normalize`: the components times `1 / sqrt(self · self)`.
+    #[inline(always)]
+    pub fn normalize(self) -> Self {
+        self.scale(F32s::splat(1.0) / self.dot(self).sqrt())
+    }
+
     #[inline(always)]
     pub fn abs(self) -> Self {
         Self { x: self.x.abs(), y: self.y.abs(), z: self.z.abs() }

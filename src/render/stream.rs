@@ -60,15 +60,15 @@
 //! code's operations in its order, each path keeps its own sample stream, and the samples
 //! of a pixel are summed in sample order whatever order they finish in.
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use gridlight_actors::state::MaterialKind;
 
 use super::accel::Lanes;
 use super::bsdf::Bsdf;
 use super::glossy_lanes::Glossy;
 use super::integrator::{
-    arrive, camera_ray, scatter, trace, PathState, RenderStats, ShadowRay, Strategy, Surface,
-    EMPTY_SAMPLE, RR_START_DEPTH,
+    arrive, scatter, trace, PathState, RenderStats, ShadowRay, Strategy, Surface, EMPTY_SAMPLE,
+    RR_START_DEPTH,
 };
 use super::lanes::{F32s, Isa, Mask, U32s, Vec3s, WIDTH};
 use super::lights::Lights;
@@ -146,6 +146,26 @@ impl<I: Isa> Group<I> {
         self.depth.0[l] = path.depth;
     }
 
+    /// Starts the paths of the `fresh` lanes, whose sample streams are set and at their
+    /// first draw, at pixel positions `(px, py)`: [`PathState::start`] and
+    /// [`super::integrator::camera_ray`] in lanes (the same bits).
+    #[inline(always)]
+    fn start(&mut self, scene: &RenderScene, fresh: u32, (px, py): (F32s<I>, F32s<I>)) {
+        let m = U32s::from_bitmask(fresh);
+        let zero = U32s::splat(0);
+        let cam = next4_lanes(self.seed, self.index, zero);
+        let (o, d) = scene.camera.ray_lanes((px + cam[0], py + cam[1]), (cam[2], cam[3]));
+        let start = PathState::start(SampleStream { pixel_seed: 0, index_reversed: 0, draw: 0 });
+        self.o = Vec3s::select(m, o, self.o);
+        self.d = Vec3s::select(m, d, self.d);
+        self.draw = U32s::select(m, U32s::splat(1), self.draw);
+        self.throughput = Vec3s::select(m, Vec3s::splat(start.throughput), self.throughput);
+        self.indirect = Vec3s::select(m, Vec3s::splat(start.indirect), self.indirect);
+        self.prev_pdf = F32s::select(m, F32s::splat(start.prev_pdf), self.prev_pdf);
+        self.depth = U32s::select(m, U32s::splat(start.depth), self.depth);
+        self.prev_delta = (self.prev_delta & !fresh) | if start.prev_delta { fresh } else { 0 };
+    }
+
     /// Makes `s` lane `l`'s pending shadow ray.
     #[inline(always)]
     fn set_shadow(&mut self, l: usize, s: &ShadowRay) {
@@ -212,25 +232,25 @@ pub(super) fn render<L: Lanes>(
             // runs on as many lanes as there are paths left.
             let mut trace_lanes = active;
             loop {
-                while active != (1 << WIDTH) - 1 && next < jobs {
-                    let l = (!active).trailing_zeros() as usize;
+                // Idle lanes take the next jobs; their camera rays are made together.
+                let mut fresh = 0u32;
+                let (mut px, mut py) = (F32s::splat(0.0), F32s::splat(0.0));
+                while active | fresh != (1 << WIDTH) - 1 && next < jobs {
+                    let l = (!(active | fresh)).trailing_zeros() as usize;
                     let pixel = chunk[next / spp];
-                    let pos = Vec2::new((pixel % width) as f32, (pixel / width) as f32);
-                    let mut path = PathState::start(SampleStream::new(
-                        state.seed,
-                        frame,
-                        pixel,
-                        (next % spp) as u32,
-                    ));
-                    let (o, d) = camera_ray(scene, &mut path.stream, pos);
-                    g.set_path(l, &path);
-                    g.o.set_lane(l, o);
-                    g.d.set_lane(l, d);
+                    (px.0[l], py.0[l]) = ((pixel % width) as f32, (pixel / width) as f32);
+                    let stream = SampleStream::new(state.seed, frame, pixel, (next % spp) as u32);
+                    g.seed.0[l] = stream.pixel_seed;
+                    g.index.0[l] = stream.index_reversed;
                     g.job[l] = next;
                     g.out[l] = EMPTY_SAMPLE;
-                    active |= 1 << l;
-                    trace_lanes |= 1 << l;
+                    fresh |= 1 << l;
                     next += 1;
+                }
+                if fresh != 0 {
+                    g.start(scene, fresh, (px, py));
+                    active |= fresh;
+                    trace_lanes |= fresh;
                 }
                 if trace_lanes == 0 {
                     break;

@@ -124,6 +124,39 @@ mod tests {
         }
     }
 
+    /// Geometric normals are the normal matrix times the edges' cross product, normalised,
+    /// bit for bit, whether the budget stored them or not (here it holds the first two
+    /// instances only).
+    #[test]
+    fn stored_geometric_normals_are_the_computed_ones() {
+        let sphere = Arc::new(Blas::build(Arc::new(shapes::sphere(3))).unwrap());
+        let mut rng = 99u64;
+        let instances: Vec<Instance> = (0..4u32)
+            .map(|object| Instance::new(sphere.clone(), random_transform(&mut rng), object, 0))
+            .collect();
+        let budget = 2 * sphere.triangle_count() + 1;
+        let all = Tlas::build(instances.clone());
+        let some = Tlas::build_with_normal_budget(instances, budget);
+        assert!(all.normals.base.iter().all(|&b| b != tlas::NOT_STORED));
+        assert_eq!(some.normals.base[2..], [tlas::NOT_STORED; 2]);
+        assert!(some.normals.base[..2].iter().all(|&b| b != tlas::NOT_STORED));
+        for tlas in [all, some] {
+            for (index, inst) in tlas.instances.iter().enumerate() {
+                for prim in 0..inst.blas.triangle_count() as u32 {
+                    let tri = inst.blas.tri(prim);
+                    let expected =
+                        Vec3::from(inst.normal_to_world * tri.e1.cross(tri.e2)).normalize();
+                    let hit = Hit { t: 1.0, instance: index as u32, prim, u: 0.0, v: 0.0 };
+                    let n = tlas.geometric_normal(&hit);
+                    assert_eq!(
+                        n.to_array().map(f32::to_bits),
+                        expected.to_array().map(f32::to_bits)
+                    );
+                }
+            }
+        }
+    }
+
     fn random_transform(rng: &mut u64) -> Affine3A {
         let t = Vec3::new(lcg(rng) * 6.0 - 3.0, lcg(rng) * 6.0 - 3.0, lcg(rng) * 6.0 - 3.0);
         let r = Quat::from_euler(glam::EulerRot::XYZ, lcg(rng) * 3.0, lcg(rng), 0.5);
