@@ -555,6 +555,37 @@ impl<I: Isa> U32s<I> {
         U32s::new(out)
     }
 
+    /// `table[i]` for each lane's `i` (< 16) from a table held in registers: one
+    /// permutation in AVX-512, two and a blend per AVX2 half; loads lane by lane in SSE2,
+    /// which has no variable permutation.
+    #[inline(always)]
+    pub fn lookup16(table: &[u32; 16], index: Self) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if I::LEVEL != Level::Sse2 {
+            let t = table.as_ptr() as *const std::arch::x86_64::__m256i;
+            return U32s::new(regs!(I, u -> u, index.0, index.0, |i, _y|
+                sse: i, // never taken: SSE2 lanes take the loop below
+                avx: {
+                    let (lo, hi) = (_mm256_loadu_si256(t), _mm256_loadu_si256(t.add(1)));
+                    let (lo, hi) =
+                        (_mm256_permutevar8x32_epi32(lo, i), _mm256_permutevar8x32_epi32(hi, i));
+                    // Bit 3 of the index, moved to the sign bit, picks the half.
+                    let upper = _mm256_castsi256_ps(_mm256_slli_epi32::<28>(i));
+                    _mm256_castps_si256(_mm256_blendv_ps(
+                        _mm256_castsi256_ps(lo),
+                        _mm256_castsi256_ps(hi),
+                        upper,
+                    ))
+                },
+                avx512: _mm512_permutexvar_epi32(i, _mm512_loadu_si512(t as *const _))));
+        }
+        let mut out = [0; WIDTH];
+        for (o, &i) in out.iter_mut().zip(&index.0) {
+            *o = table[i as usize];
+        }
+        U32s::new(out)
+    }
+
     /// Each lane read as an integer below 2²⁴, converted exactly to `f32`.
     #[inline(always)]
     pub fn to_f32(self) -> F32s<I> {
@@ -874,6 +905,9 @@ pub(crate) mod tests {
             std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) ^ 0x55);
         let (rev, mul, add) = (x.reverse_bits(), x.wrapping_mul(y), x.wrapping_add(y));
         let (shr, shl, gather) = (x >> 8, x << 3, U32s::gather(&table, x & U32s::splat(0xff)));
+        let lane = U32s::<I>::new(std::array::from_fn(|i| i as u32));
+        let table16: [u32; 16] = std::array::from_fn(|i| table[i * 7]);
+        let look = U32s::lookup16(&table16, (x ^ lane) & U32s::splat(15));
         let (eq, gt) =
             (x.eq(U32s::select(U32s::from_bitmask(0b0100_0000_0010_0000), x, !x)), x.gt_i32(y));
         let unit = (x >> 8).to_f32();
@@ -884,6 +918,7 @@ pub(crate) mod tests {
             assert_eq!(add.0[i], a.wrapping_add(b), "lane {i}");
             assert_eq!((shr.0[i], shl.0[i]), (a >> 8, a << 3), "lane {i}");
             assert_eq!(gather.0[i], table[(a & 0xff) as usize], "lane {i}");
+            assert_eq!(look.0[i], table16[((a ^ i as u32) & 15) as usize], "lane {i}");
             assert_eq!(gt.0[i] != 0, a as i32 > b as i32, "lane {i}");
             assert_eq!(unit.0[i].to_bits(), ((a >> 8) as f32).to_bits(), "lane {i}");
         }
