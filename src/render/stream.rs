@@ -17,7 +17,8 @@
 //! operation with masks. This kernel is that megakernel's shape at the width of one
 //! AVX-512 register, with refill: sixteen lanes, each holding one path; a lane whose path ends
 //! takes the next (pixel, sample) of the job at once, so lanes stay busy until the job's
-//! tail; one that ends at its hit is refilled and its camera ray traced before the
+//! tail (the camera rays of the lanes refilled together are made together, in lanes:
+//! `Group::start`); one that ends at its hit is refilled and its camera ray traced before the
 //! vector stage runs, which keeps that stage's lanes 99 % busy on the Cornell box (81 %
 //! when refilled only after it, 6 % fewer samples per second; both figures of eight
 //! lanes). Per bounce, each lane's
@@ -52,9 +53,12 @@
 //! [`super::lanes`] says why every build has the same width): on an AMD EPYC Zen 4,
 //! paired medians of 25 alternating rounds against the eight-lane v3 build, Cornell box
 //! 1.035×, bunny 0.99×, Sponza 1.03×; lanes 98–99 % busy. The gain is small because the
-//! rest of a frame is one path at a time: in the v4 build's profile (perf, Cornell box)
-//! the vector stage's code holds about a fifth of the samples, each lane's BVH walk about
-//! a third, hit resolution, camera rays and lane traffic most of the rest.
+//! rest of a frame is one path at a time. Since then camera rays are made in lanes and
+//! geometric normals are looked up instead of computed at each hit
+//! ([`super::accel::Tlas::geometric_normal`]), and the v4 build's profile (perf, Cornell
+//! box) has each lane's BVH walk at about three fifths of the samples, the vector stage
+//! and the camera rays at about a sixth together, hit resolution and lane traffic at most
+//! of the rest.
 //!
 //! The pictures are the one-path kernel's, bit for bit: every lane computes the scalar
 //! code's operations in its order, each path keeps its own sample stream, and the samples
