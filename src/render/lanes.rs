@@ -557,7 +557,7 @@ impl<I: Isa> U32s<I> {
 
     /// `table[i]` for each lane's `i` (< 16) from a table held in registers: one
     /// permutation in AVX-512, two and a blend per AVX2 half; loads lane by lane in SSE2,
-    /// which has no variable permutation.
+    /// which has no variable permutation. The register loads read the table's 64 bytes.
     #[inline(always)]
     pub fn lookup16(table: &[u32; 16], index: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
