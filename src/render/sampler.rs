@@ -236,10 +236,11 @@ pub(crate) fn next4_lanes<I: Isa>(
     #[inline(always)]
     fn sobol<I: Isa>(i: U32s<I>, dim: usize) -> U32s<I> {
         if I::LEVEL == Level::Avx512 {
-            let t = &NIBBLES[dim];
-            let nibble = |n: usize| U32s::lookup16(&t[n], (i >> (4 * n as u32)) & U32s::splat(15));
-            return ((nibble(0) ^ nibble(1)) ^ (nibble(2) ^ nibble(3)))
-                ^ ((nibble(4) ^ nibble(5)) ^ (nibble(6) ^ nibble(7)));
+            let mut x = U32s::splat(0);
+            for (n, table) in NIBBLES[dim].iter().enumerate() {
+                x = x ^ U32s::lookup16(table, (i >> (4 * n as u32)) & U32s::splat(15));
+            }
+            return x;
         }
         let t = &TABLES[dim];
         let byte = U32s::splat(0xff);

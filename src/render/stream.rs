@@ -150,19 +150,19 @@ impl<I: Isa> Group<I> {
         self.depth.0[l] = path.depth;
     }
 
-    /// Starts the paths of the `fresh` lanes, whose sample streams are set and at their
-    /// first draw, at pixel positions `(px, py)`: [`PathState::start`] and
-    /// [`super::integrator::camera_ray`] in lanes (the same bits).
+    /// Starts the paths of the `fresh` lanes, whose sample streams are set, at pixel
+    /// positions `(px, py)`: [`PathState::start`] and the test reference's `camera_ray`
+    /// in lanes (the same bits).
     #[inline(always)]
     fn start(&mut self, scene: &RenderScene, fresh: u32, (px, py): (F32s<I>, F32s<I>)) {
         let m = U32s::from_bitmask(fresh);
-        let zero = U32s::splat(0);
-        let cam = next4_lanes(self.seed, self.index, zero);
+        let cam = next4_lanes(self.seed, self.index, self.draw);
         let (o, d) = scene.camera.ray_lanes((px + cam[0], py + cam[1]), (cam[2], cam[3]));
+        // The path fields other than the stream, which are the same for every path.
         let start = PathState::start(SampleStream { pixel_seed: 0, index_reversed: 0, draw: 0 });
         self.o = Vec3s::select(m, o, self.o);
         self.d = Vec3s::select(m, d, self.d);
-        self.draw = U32s::select(m, U32s::splat(1), self.draw);
+        self.draw = U32s::select(m, self.draw.wrapping_add(U32s::splat(1)), self.draw);
         self.throughput = Vec3s::select(m, Vec3s::splat(start.throughput), self.throughput);
         self.indirect = Vec3s::select(m, Vec3s::splat(start.indirect), self.indirect);
         self.prev_pdf = F32s::select(m, F32s::splat(start.prev_pdf), self.prev_pdf);
@@ -246,6 +246,7 @@ pub(super) fn render<L: Lanes>(
                     let stream = SampleStream::new(state.seed, frame, pixel, (next % spp) as u32);
                     g.seed.0[l] = stream.pixel_seed;
                     g.index.0[l] = stream.index_reversed;
+                    g.draw.0[l] = stream.draw;
                     g.job[l] = next;
                     g.out[l] = EMPTY_SAMPLE;
                     fresh |= 1 << l;
