@@ -3,7 +3,7 @@
 //!
 //! This crate knows nothing of rendering, windows or wgpu: the presenter hands
 //! frames to a sink trait, and the `gridlight` crate plugs the renderer, the
-//! reconstruction and the window into it (DESIGN.md, Layout).
+//! reconstruction and the window into it (docs/design.md, "Layout").
 //!
 //! # Layout: one folder per role
 //! - [`wire`]: what travels between master and workers (messages, codec, auth,

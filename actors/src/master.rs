@@ -49,7 +49,7 @@ pub use crate::presenter::stats::FrameStats;
 pub use crate::presenter::ReportState as MasterReport;
 pub use crate::supervision::ActorKind;
 
-/// Default number of jobs a worker may hold (DESIGN.md decision 7).
+/// Default number of jobs a worker may hold (docs/design.md, decision 7).
 pub const DEFAULT_PIPELINE: u32 = 2;
 /// Default cap on simultaneous connections.
 pub const DEFAULT_MAX_CONNECTIONS: usize = 256;

@@ -27,7 +27,7 @@ struct Params {
 
 @group(0) @binding(0) var<uniform> params: Params;
 
-// Intended meaning of the paper's D (DESIGN.md): positive only when the normals agree and
+// Intended meaning of the paper's D (docs/design.md): positive only when the normals agree and
 // the positions are close, 1 for a pixel against itself, 0 for pixels with no surface.
 fn discontinuity(ni: vec3<f32>, nj: vec3<f32>, zi: vec3<f32>, zj: vec3<f32>) -> f32 {
     let orientation = max((dot(ni, nj) - params.alpha) * params.inv_one_minus_alpha, 0.0);

@@ -16,7 +16,7 @@ use crate::master::view::View;
 use crate::reconstruct::ReconstructParams;
 use crate::scene::{PacingOverrides, SceneSource};
 
-/// Sets per frame when `--sets` is not given (DESIGN.md decision 1).
+/// Sets per frame when `--sets` is not given (docs/design.md, decision 1).
 pub const DEFAULT_SETS: u32 = 64;
 
 /// Pixel partition names on the command line.
@@ -102,7 +102,7 @@ pub struct DisplayArgs {
     /// Compute each new scene state's G-buffer on a thread of its own as soon as the
     /// scene changes, while the workers render it. For a master with cores to spare (its
     /// workers on other machines); beside local workers on few cores it only competes
-    /// with the reconstruction (README, edit-to-display latency).
+    /// with the reconstruction (docs/performance.md, edit-to-display latency).
     #[arg(long)]
     pub gbuffer_ahead: bool,
 }

@@ -1,7 +1,7 @@
 //! The G-buffer: per-pixel primary-hit data that guides reconstruction and remodulation,
 //! all of it in this folder.
 //!
-//! Computed on the master for every pixel of a frame's scene state (DESIGN.md), by the
+//! Computed on the master for every pixel of a frame's scene state (docs/design.md), by the
 //! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel, in the dispatched
 //! kernel build) or the wgpu raster pass ([`GpuGBuffer`]: `gpu.rs` with its device
 //! objects in `raster.rs` and its WGSL in `raster.wgsl`); [`GBufferSource`] picks one

@@ -2,7 +2,7 @@
 //!
 //! The paper prints `D = max(0, n_i·n_j − α) × max(0, |z_i − z_j|² − β²)`, which would give
 //! zero weight to pixels at the same position and positive weight to distant ones — the
-//! opposite of its stated purpose (DESIGN.md). We implement the intended meaning: positive
+//! opposite of its stated purpose (docs/design.md). We implement the intended meaning: positive
 //! only when the orientations agree (`n_i·n_j > α`) and the positions are close
 //! (`|z_i − z_j| < β`), falling smoothly to zero at each threshold:
 //!

@@ -1,7 +1,7 @@
 //! Spatio-temporal reconstruction of partial, noisy frames (paper §4.3.1).
 //!
 //! Per shown frame, on demodulated radiance (reflected radiance divided by the G-buffer's
-//! albedo; DESIGN.md), guided by the frame's [`GBuffer`], the five passes of [`pass`] run
+//! albedo; docs/design.md), guided by the frame's [`GBuffer`], the five passes of [`pass`] run
 //! in order: accumulate, fill, and while interacting (the first frame of a scene state)
 //! temporal and the edge-aware Gaussian, then remodulate. Each pass keeps its CPU kernel,
 //! WGSL and GPU binding together in `pass/`; the pipelines that run them are

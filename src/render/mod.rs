@@ -5,7 +5,7 @@
 //! top-level BVH over the object instances (rebuilt per state), the material and
 //! light tables and the camera. [`render_pixels`] path-traces a list of pixels on
 //! the calling thread, deterministically for (scene seed, frame, pixel, sample),
-//! and returns what reconstruction needs per pixel (DESIGN.md): demodulated
+//! and returns what reconstruction needs per pixel (docs/design.md): demodulated
 //! radiance, directly seen emission and the primary hit's G-buffer values.
 //!
 //! Modules: [`accel`] (BVHs), [`sampler`] (scrambled Sobol), [`camera`],

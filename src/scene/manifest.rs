@@ -1,6 +1,6 @@
 //! The asset manifest: every file a scene state needs, with its SHA-256 and length.
 //!
-//! The master sends it to each worker on connect (DESIGN.md decision 4); the worker fetches
+//! The master sends it to each worker on connect (docs/design.md, decision 4); the worker fetches
 //! what its cache lacks and then loads the state's assets through a resolver over its cache.
 //! The list holds each OBJ, the material libraries it names, every albedo texture the state's
 //! materials use and the environment map, each once, in that order.

@@ -5,8 +5,8 @@
 //! the reconstruction opens its own ([`GpuContext::on_adapter`]), so that the compose
 //! thread can reconstruct on it and the window draw its textures directly
 //! (`crate::gpu::offer`). On machines without a GPU,
-//! Mesa's lavapipe (software Vulkan) is picked by default; `WGPU_BACKEND` overrides the
-//! backend (see `../shared/notes/wgpu-without-a-gpu.md`).
+//! Mesa's lavapipe (software Vulkan) is picked by default; `WGPU_BACKEND=vulkan|gl` overrides
+//! the backend (the GL backend, llvmpipe, lacks float32 filtering, so prefer Vulkan).
 
 use std::sync::Arc;
 

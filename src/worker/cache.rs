@@ -1,4 +1,4 @@
-//! The worker's on-disk asset cache, keyed by content hash (DESIGN.md decision 4).
+//! The worker's on-disk asset cache, keyed by content hash (docs/design.md, decision 4).
 //!
 //! Layout under the cache directory:
 //! - `blobs/<sha256 hex>`: one file per asset, named by the SHA-256 of its bytes. A blob

@@ -50,7 +50,7 @@ use session::{SessionConfig, SessionEnd, SessionProgress};
 use shared::Shared;
 use tokio::sync::watch;
 
-/// Jobs a worker holds at once when not told otherwise (DESIGN.md decision 7).
+/// Jobs a worker holds at once when not told otherwise (docs/design.md, decision 7).
 pub const DEFAULT_PIPELINE: u32 = 2;
 
 /// Bytes the writer may buffer before it must flush (tokio-util's default is 8 KiB, less

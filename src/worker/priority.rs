@@ -1,7 +1,7 @@
 //! The CPU priority of render threads: a worker is a guest on someone's desk.
 //!
 //! By default every render thread asks for the lowest priority the OS offers, so that
-//! any process of the desk's owner always runs first (DESIGN.md decision 9):
+//! any process of the desk's owner always runs first (docs/design.md, decision 9):
 //! - **Linux**: `SCHED_IDLE` for the calling thread (`sched_setscheduler(0, ..)` acts on
 //!   the thread, not the process). Such a thread runs only on a CPU nothing else wants;
 //!   the kernel still gives it a sliver (its weight is 3 against a normal thread's 1024)

@@ -50,7 +50,7 @@ pub struct SessionConfig {
     pub name: String,
     /// The shared secret, if any (`--secret-file`).
     pub secret: Option<Arc<Vec<u8>>>,
-    /// Jobs held at once (DESIGN.md decision 7).
+    /// Jobs held at once (docs/design.md, decision 7).
     pub pipeline: u32,
     /// Real path tracing or the null renderer.
     pub renderer: RendererKind,

@@ -1,7 +1,7 @@
 //! Zero-configuration discovery: what a master announces on the LAN, on the wire.
 //!
 //! A master sends one UDP datagram every [`ANNOUNCE_INTERVAL`] to a broadcast address on
-//! [`DISCOVERY_PORT`] (DESIGN.md decision 10); `gridlight worker` without `--master`
+//! [`DISCOVERY_PORT`] (docs/design.md, decision 10); `gridlight worker` without `--master`
 //! listens there and joins the master it hears. A datagram is the 4 bytes
 //! [`MAGIC`], one byte [`ANNOUNCE_FORMAT`], then an [`Announcement`] as MessagePack
 //! (positional fields); at most [`MAX_ANNOUNCEMENT_LEN`] bytes in all, names at most

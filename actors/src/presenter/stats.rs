@@ -134,7 +134,7 @@ pub struct FrameStats {
     /// Results so far that came back for a job (accepted, or dropped as late).
     pub results_returned: u64,
     /// `results_used / results_returned`: the share of the grid's returned work that reached
-    /// an image (DESIGN.md decision 8); `None` (JSON `null`) before any result returned.
+    /// an image (docs/design.md, decision 8); `None` (JSON `null`) before any result returned.
     pub useful_fraction: Option<f64>,
     /// Queued jobs discarded so far because the scene state changed before they were
     /// handed out (never handed out afterwards).

@@ -3,8 +3,8 @@
 //! A [`SceneState`] is camera, objects (geometry reference, transform, material
 //! binding), materials, lights, environment and render settings. It never carries
 //! asset data (meshes, textures, environment maps): those are named by their asset
-//! path and fetched once per worker (DESIGN.md decision 4). It travels whole, never
-//! as a diff (DESIGN.md decision 3), and every edit gives it a new
+//! path and fetched once per worker (docs/design.md, decision 4). It travels whole, never
+//! as a diff (docs/design.md, decision 3), and every edit gives it a new
 //! [`StateVersion`]; the master's scene-state holder is the only place that bumps it.
 //!
 //! The types are plain serde values with glam vectors so that the master, the

@@ -1,4 +1,4 @@
-//! Pixel sets: which pixels one job renders (DESIGN.md decision 1).
+//! Pixel sets: which pixels one job renders (docs/design.md, decision 1).
 //!
 //! A set is a pure function of (resolution, [`SetsConfig`], set number), so master and
 //! worker derive the same pixel list and pixel indices never travel. Indices are

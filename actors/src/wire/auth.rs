@@ -1,4 +1,4 @@
-//! Challenge-response authentication with a shared secret (DESIGN.md decision 5).
+//! Challenge-response authentication with a shared secret (docs/design.md, decision 5).
 //!
 //! The master sends a fresh random nonce; the worker answers HMAC-SHA256(secret, nonce);
 //! the master recomputes and compares in constant time. The secret itself never travels,

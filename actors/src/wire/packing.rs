@@ -1,4 +1,4 @@
-//! Shared-exponent RGB9E5 packing of radiance (DESIGN.md decision 2).
+//! Shared-exponent RGB9E5 packing of radiance (docs/design.md, decision 2).
 //!
 //! Each pixel is one `u32`: three 9-bit mantissas and a 5-bit exponent shared by the
 //! three channels (the `EXT_texture_shared_exponent` layout: red in the low bits,

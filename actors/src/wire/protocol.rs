@@ -21,7 +21,7 @@
 //!    (only hashes in the manifest are served) and receives [`MasterMsg::AssetChunk`]s
 //!    in order; it verifies the hash of the whole file before using it.
 //! 4. **Work**: the worker sends [`WorkerMsg::Ready`] with credits (how many more
-//!    jobs it can hold; at most `k` in total, DESIGN.md decision 7). For each job the
+//!    jobs it can hold; at most `k` in total: docs/design.md, decision 7). For each job the
 //!    master sends, *before the first job that names a state version on this
 //!    connection*, that [`MasterMsg::State`]; then [`MasterMsg::Job`]. A worker never
 //!    renders with a state it was not sent. Each job is answered by exactly one
@@ -72,7 +72,7 @@
 //!
 //! # What the master never does
 //! Re-send a job whose result was lost: a late or missing result leaves a hole that
-//! reconstruction fills (DESIGN.md, "nothing lost is redone").
+//! reconstruction fills (docs/design.md, "Nothing lost is redone").
 
 use std::time::Duration;
 
@@ -115,7 +115,7 @@ pub type SetNo = u32;
 /// SHA-256 of an asset file's bytes.
 pub type AssetHash = [u8; 32];
 
-/// How pixels are assigned to sets (DESIGN.md decision 1).
+/// How pixels are assigned to sets (docs/design.md, decision 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Partition {
     /// Scrambled low-discrepancy assignment: every set covers the whole image.
@@ -141,7 +141,7 @@ pub struct AssetEntry {
     pub len: u64,
 }
 
-/// Radiance of a set's pixels, in set order, packed (DESIGN.md decision 2): the mean over
+/// Radiance of a set's pixels, in set order, packed (docs/design.md, decision 2): the mean over
 /// each pixel's samples of the radiance minus what the primary hit emits, *not* divided by
 /// the albedo. The master divides it by its G-buffer's albedo and multiplies that same
 /// albedo back in after reconstruction, so the two cancel exactly.

@@ -1,5 +1,5 @@
 //! `gridlight bench waste`: the share of the grid's returned work that reaches an image, at
-//! each grid size (issue 15, DESIGN.md decision 8).
+//! each grid size (issue 15; docs/design.md, decision 8).
 //!
 //! The master runs in this process with the benchmark's counting sink and the master's own
 //! defaults (S = 64, k = 2, the wait heuristic unless `--fps`); the workers are one child

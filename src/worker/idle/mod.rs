@@ -1,5 +1,5 @@
 //! `--when-idle`: the worker stops taking jobs while its desk's owner is active and
-//! takes them again once the machine has been idle for a while (DESIGN.md decision 9).
+//! takes them again once the machine has been idle for a while (docs/design.md, decision 9).
 //!
 //! A monitor thread samples the machine every `sample_every` ([`cpu`]: CPU times from
 //! `/proc`; [`input`]: keyboard/mouse idle time where the platform tells), feeds the
