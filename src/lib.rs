@@ -12,7 +12,7 @@
 //!   (G-buffer, reconstruction, views), the headless sink.
 //! - [`signals`]: Ctrl-C and SIGTERM as a callback (headless master and window).
 //! - [`simgrid`]: simulated workers (modelled render time, cached real pixels) through
-//!   the real worker session, for evaluating grids larger than this machine.
+//!   the real worker link, for evaluating grids larger than this machine.
 //! - [`testing`]: how a test that cannot run here says so (and fails under CI).
 //! - [`worker`]: the worker runtime (connections, asset cache, render threads).
 //! - [`gbuffer`]: the G-buffer (CPU primary rays or the wgpu raster pass, its WGSL beside it).

@@ -84,7 +84,7 @@ fn the_quick_evaluation_writes_a_complete_report_whose_stable_claims_hold() {
     // Figure 9: deterministic offline reconstruction.
     assert!(claim("fig9", 0), "spatio-temporal should be closer to the converged image");
 
-    // Grid experiments measured real sessions: frames shown and useful fractions in range.
+    // Grid experiments measured real runs: frames shown and useful fractions in range.
     let rows = section("fig10")["data"]["rows"].as_array().expect("fig10 rows");
     assert_eq!(rows.len(), 2 * 4, "paper's and this machine's cores at 8, 32, 128, 256");
     for r in rows {
@@ -133,7 +133,7 @@ fn the_quick_evaluation_writes_a_complete_report_whose_stable_claims_hold() {
         .collect();
     assert!(versions.len() > 10, "fig5's sequence should carry one camera per frame: {versions:?}");
     let int = moving(&fig5["interactive"]["frames"], true);
-    assert!(int > 10, "fig5's interactive session showed {int} frames of a moving view");
+    assert!(int > 10, "fig5's interactive run showed {int} frames of a moving view");
 
     // Beyond the paper: loopback always; the links where namespaces can be made (root).
     let lan = &section("lan")["data"];

@@ -25,7 +25,7 @@
 //! # The result path runs one way
 //! Scheduler → (connection → worker → connection) → assembler → presenter → sink thread.
 //! Each fact has one keeper: who holds which job, and every check of a result, the
-//! connection's session; a frame's results, its timing and the decision to show it, the
+//! connection's protocol state; a frame's results, its timing and the decision to show it, the
 //! assembler; the dropped counts, `Counters`; accumulation, the assembler's decision,
 //! carried with the frame. Where an answer must go back (a frame displayed, a sink
 //! place freed, jobs for credits), the request carries the address, so the actors are

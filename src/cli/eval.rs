@@ -40,7 +40,7 @@ pub enum EvalCommand {
     Fig9(super::eval_paper::Fig9Args),
     /// Figure 10: speed-up and efficiency for 1 to 256 simulated workers.
     Fig10(super::eval_paper::Fig10Args),
-    /// Beyond the paper: the sessions across 100 Mbit/s and 1 Gbit/s links (root).
+    /// Beyond the paper: the runs across 100 Mbit/s and 1 Gbit/s links (root).
     Lan(super::eval_paper::LanArgs),
 }
 

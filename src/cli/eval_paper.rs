@@ -113,7 +113,7 @@ pub struct LanArgs {
     /// Link rates in Mbit/s (each direction of every link).
     #[arg(long, value_delimiter = ',')]
     pub links: Option<Vec<u32>>,
-    /// Seconds measured per session.
+    /// Seconds measured per run.
     #[arg(long)]
     pub seconds: Option<f64>,
 }

@@ -189,7 +189,7 @@ pub fn run_window(
     let script = load_script(opts)?;
     let composer = prepared.composer(opts)?;
     warn_if_open(&prepared.config);
-    let start = crate::window::session::MasterStart {
+    let start = crate::window::master_control::MasterStart {
         config: prepared.config,
         state: prepared.state,
         store: prepared.store,
@@ -201,7 +201,7 @@ pub fn run_window(
         }),
         on_shutdown,
     };
-    let report = crate::window::session::run_master_window(window, start)
+    let report = crate::window::master_control::run_master_window(window, start)
         .context("running the window (use --headless to run without one)")?;
     if let Some(err) = &report.error {
         bail!("the master stopped on an error: {err}");

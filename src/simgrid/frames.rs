@@ -1,7 +1,7 @@
 //! Path-traced frames rendered once and cached, so that simulated workers return real
 //! pixels without spending the render time again.
 //!
-//! For every scene state a session will show (the start state and each edit of its camera
+//! For every scene state an evaluation run will show (the start state and each edit of its camera
 //! path, applied as the master applies them), a few complete frames are path-traced with
 //! the real renderer, each with its own frame number and so its own sample seeds. A
 //! simulated worker answers job (frame f, set s) of a state with set s's pixels of cached

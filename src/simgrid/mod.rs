@@ -5,7 +5,7 @@
 //! What is modelled: each job's render time ([`cost`]: the per-core throughput measured
 //! by the real path tracer on this machine for this scene, with its spread) and which
 //! workers are available ([`availability`]). What is real: the pixels (path-traced once
-//! beforehand, [`frames`]), the worker session and protocol, every TCP connection, the
+//! beforehand, [`frames`]), the worker link and protocol, every TCP connection, the
 //! master with its scheduler, wait heuristic and reconstruction.
 //!
 //! - [`cost`]: measuring and sampling job times.

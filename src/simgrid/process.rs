@@ -1,5 +1,5 @@
 //! One process of a simulated grid: many simulated workers as tokio tasks, each its own
-//! TCP connection and the real worker session (`worker::session`), so the master pays for
+//! TCP connection and the real worker link (`worker::link`), so the master pays for
 //! every one of them what it pays for a real worker.
 //!
 //! Worker `g` of the grid (numbered across all its processes) takes jobs while
@@ -20,7 +20,7 @@ use tracing::info;
 use super::availability::Availability;
 use super::renderer::SimGrid;
 use crate::worker::idle::Activity;
-use crate::worker::session::SessionConfig;
+use crate::worker::link::LinkConfig;
 use crate::worker::shared::Shared;
 use crate::worker::{cache::AssetCache, connection_loop, Priority, RendererKind, WorkerError};
 
@@ -42,7 +42,7 @@ pub struct ProcessOptions {
     /// With a fixed frame rate, frame `i` is the one due `i / fps` seconds after start;
     /// `None`: the newest frame a job named.
     pub frame_rate: Option<f32>,
-    /// The (empty) asset cache the sessions open; simulated workers load no assets.
+    /// The (empty) asset cache the links open; simulated workers load no assets.
     pub cache_dir: PathBuf,
 }
 
@@ -59,7 +59,7 @@ pub async fn run_until(
     for g in opts.first..opts.first + opts.count {
         let (tx, rx) = watch::channel(wanted(g, opts.availability.at(0)));
         switches.push((g, tx));
-        let session = SessionConfig {
+        let link = LinkConfig {
             name: format!("sim#{g}"),
             secret: None,
             pipeline: opts.pipeline,
@@ -68,7 +68,7 @@ pub async fn run_until(
         };
         tasks.spawn(connection_loop(
             opts.master.clone(),
-            session,
+            link,
             Arc::clone(&shared),
             cancel.clone(),
             rx,

@@ -1,6 +1,6 @@
 //! A simulated worker's renderer: real cached pixels after a modelled render time.
 //!
-//! It stands in the render thread's seat (`worker::render`), so the session, the
+//! It stands in the render thread's seat (`worker::render`), so the link, the
 //! protocol, the result tags and the master are the real ones. A job is answered with its
 //! set's pixels of a cached frame ([`super::frames`]) once the modelled time
 //! ([`super::cost`]) has passed; jobs of one connection run one after another, as on one
@@ -111,7 +111,7 @@ impl SimConnection {
             self.grid.cache.frame(&self.grid.key(&job.state), job.frame).ok_or_else(|| {
                 WorkerError::Render(format!(
                     "scene state version {} is not in the simulated grid's frame cache \
-                 (the session showed a view that was not rendered beforehand)",
+                 (the run showed a view that was not rendered beforehand)",
                     job.state.version
                 ))
             })?;

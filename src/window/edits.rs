@@ -11,7 +11,7 @@
 //! only; an `Edit` is the one vocabulary the master,
 //! interaction scripts and tests speak — only the fields it changes, objects and
 //! materials by name, values checked before the state changes. The window turns each of
-//! its edits into an `Edit` (`window::session::to_master_edit`); [`WindowEditError`] is
+//! its edits into an `Edit` (`window::master_control::to_master_edit`); [`WindowEditError`] is
 //! only "that index is not in my copy", `EditError` the master's refusal.
 
 use std::time::Instant;

@@ -25,7 +25,7 @@
 //! - [`panel`], [`status`]: the egui side panel over plain data.
 //! - [`picture`]: pictures and the diagnostic views; [`layout`]: where the picture sits.
 //! - [`latest`]: the newest-only hand-off; [`record`]: edit recording; [`screenshot`].
-//! - [`session`]: the window on a running master (frame sink, edits, picking, scripts).
+//! - [`master_control`]: the window on a running master (frame sink, edits, picking, scripts).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -43,11 +43,11 @@ pub mod gpu;
 pub mod latest;
 pub mod layout;
 pub mod manipulate;
+pub mod master_control;
 pub mod panel;
 pub mod picture;
 pub mod record;
 pub mod screenshot;
-pub mod session;
 pub mod status;
 
 use crate::gpu::DeviceOffer;
@@ -63,7 +63,7 @@ use status::StatusView;
 pub enum UserEvent {
     /// A new picture waits in the slot.
     FrameReady,
-    /// The session ended on its own (e.g. the master stopped), or Ctrl-C/SIGTERM came:
+    /// The master stopped on its own, or Ctrl-C/SIGTERM came:
     /// close the window.
     Quit,
 }
@@ -79,7 +79,7 @@ pub struct ReadyFrame {
 
 /// The master as the window sees it. Every call returns at once: edits and pacing are
 /// messages, never waits.
-pub trait Session {
+pub trait MasterControl {
     /// The scene state the window starts from.
     fn initial_state(&self) -> SceneState;
     /// The pacing the master started with.
@@ -94,7 +94,7 @@ pub trait Session {
     /// The object (index into the state's objects) under render pixel (x, y) of the
     /// shown frame's scene.
     fn pick(&self, x: f32, y: f32) -> Option<u32>;
-    /// Adds what the session knows beyond the last frame's statistics (workers, …).
+    /// Adds what the master knows beyond the last frame's statistics (workers, …).
     fn refresh_status(&mut self, status: &mut StatusView);
     /// Saves recorded edits as an interaction script; returns its path.
     fn save_script(&self, entries: &[(Duration, WindowEdit)]) -> Result<PathBuf, String>;
@@ -133,8 +133,8 @@ impl Default for WindowOptions {
 pub enum WindowError {
     #[error("cannot start the window system's event loop: {0}")]
     EventLoop(#[from] winit::error::EventLoopError),
-    #[error("cannot start the session: {0}")]
-    Session(String),
+    #[error("cannot start the window: {0}")]
+    Start(String),
 }
 
 /// True when a display server is reachable by its usual variables (X11 or Wayland).
@@ -146,7 +146,7 @@ pub fn display_available() -> bool {
 
 /// Opens the window on the current thread (the main thread in the binary) and runs until it
 /// closes. `start` receives the proxy, the frame slot and the offer of the window's device
-/// and starts the session (master, compose thread); it runs once the event loop exists,
+/// and starts the master (and the compose thread); it runs once the event loop exists,
 /// before the window opens.
 pub fn run<F>(options: WindowOptions, start: F) -> Result<(), WindowError>
 where
@@ -154,7 +154,7 @@ where
         EventLoopProxy<UserEvent>,
         Arc<Latest<ReadyFrame>>,
         DeviceOffer,
-    ) -> Result<Box<dyn Session>, String>,
+    ) -> Result<Box<dyn MasterControl>, String>,
 {
     let event_loop = new_event_loop()?;
     // Ctrl-C and SIGTERM close the window the way its close button does.
@@ -162,12 +162,12 @@ where
     crate::signals::on_stop_signal(move |_| {
         let _ = quit.send_event(UserEvent::Quit);
     })
-    .map_err(|e| WindowError::Session(format!("cannot install the Ctrl-C handler: {e}")))?;
+    .map_err(|e| WindowError::Start(format!("cannot install the Ctrl-C handler: {e}")))?;
     let frames = Arc::new(Latest::new());
     let offer = DeviceOffer::new();
-    let session = start(event_loop.create_proxy(), Arc::clone(&frames), offer.clone())
-        .map_err(WindowError::Session)?;
-    let mut app = app::App::new(options, session, frames, offer);
+    let master = start(event_loop.create_proxy(), Arc::clone(&frames), offer.clone())
+        .map_err(WindowError::Start)?;
+    let mut app = app::App::new(options, master, frames, offer);
     event_loop.run_app(&mut app)?;
     Ok(())
 }

@@ -70,7 +70,7 @@ pub struct PanelSettings {
     pub camera_mode: CameraMode,
     pub pacing: PacingChoice,
     pub shot_format: ShotFormat,
-    /// True while the session's edits are being recorded.
+    /// True while the edits are being recorded.
     pub recording: bool,
 }
 

@@ -1,4 +1,4 @@
-//! Recording the session's edits with the time each was made, for saving as an
+//! Recording the window's edits with the time each was made, for saving as an
 //! interaction script that `--script` replays.
 
 use std::time::{Duration, Instant};

@@ -4,7 +4,7 @@
 //! come back at once; jitter spreads those attempts out so a restarted master is not hit
 //! by a synchronised storm. The delay grows from `base` by `factor` per failed attempt up
 //! to `max`, and each wait is drawn uniformly from `[cap/2, cap]` so it never collapses to
-//! zero ("equal jitter"). A successful session resets it.
+//! zero ("equal jitter"). A successful link resets it.
 
 use std::time::Duration;
 
@@ -61,7 +61,7 @@ impl Backoff {
         self.attempts
     }
 
-    /// Back to the first delay, after a session that got as far as doing work.
+    /// Back to the first delay, after a link that got as far as doing work.
     pub fn reset(&mut self) {
         self.attempts = 0;
     }

@@ -13,7 +13,7 @@
 //!
 //! - [`cache`]: the hash-keyed on-disk asset cache.
 //! - [`backoff`]: reconnect delays.
-//! - [`session`]: one connection's protocol phases.
+//! - [`link`]: one connection to the master: its protocol phases.
 //! - [`render`]: the render thread (path tracer or null renderer).
 //! - [`gpu`]: a GPU worker's device thread, which renders all its connections' jobs.
 //! - [`shared`]: what the connections of a process share.
@@ -27,10 +27,10 @@ pub mod cache;
 pub mod discover;
 pub mod gpu;
 pub mod idle;
+pub mod link;
 pub mod priority;
 pub mod render;
 pub mod resolver;
-pub mod session;
 pub mod shared;
 
 use std::sync::Arc;
@@ -44,9 +44,9 @@ use tracing::{error, info, warn};
 
 use backoff::Backoff;
 use idle::{Activity, IdlePolicy};
+use link::{LinkConfig, LinkEnd, LinkProgress};
 pub use priority::Priority;
 pub use render::RendererKind;
-use session::{SessionConfig, SessionEnd, SessionProgress};
 use shared::Shared;
 use tokio::sync::watch;
 
@@ -187,7 +187,7 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
     };
     let mut tasks = tokio::task::JoinSet::new();
     for i in 0..config.threads.max(1) {
-        let session = SessionConfig {
+        let link = LinkConfig {
             name: format!("{}#{i}", config.name),
             secret: config.secret.clone().map(Arc::new),
             pipeline: config.pipeline,
@@ -196,7 +196,7 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
         };
         tasks.spawn(connection_loop(
             config.master.clone(),
-            session,
+            link,
             Arc::clone(&shared),
             cancel.clone(),
             activity.clone(),
@@ -218,10 +218,10 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
     outcome
 }
 
-/// Connects, runs a session, and reconnects with back-off until shutdown or a fatal error.
+/// Connects, runs a link, and reconnects with back-off until shutdown or a fatal error.
 pub(crate) async fn connection_loop(
     master: String,
-    config: SessionConfig,
+    config: LinkConfig,
     shared: Arc<Shared>,
     cancel: CancellationToken,
     mut activity: watch::Receiver<Activity>,
@@ -229,17 +229,16 @@ pub(crate) async fn connection_loop(
     let mut backoff = Backoff::default();
     let mut rng = rand::rngs::StdRng::from_entropy();
     loop {
-        let mut progress = SessionProgress::default();
+        let mut progress = LinkProgress::default();
         let outcome = match connect(&master).await {
             Ok(transport) => {
-                session::run(transport, &config, &shared, &cancel, &mut activity, &mut progress)
-                    .await
+                link::run(transport, &config, &shared, &cancel, &mut activity, &mut progress).await
             }
             Err(err) => Err(err),
         };
         match outcome {
-            Ok(SessionEnd::Shutdown) => return Ok(()),
-            Ok(SessionEnd::Closed) => info!(worker = %config.name, "master closed the connection"),
+            Ok(LinkEnd::Shutdown) => return Ok(()),
+            Ok(LinkEnd::Closed) => info!(worker = %config.name, "master closed the connection"),
             Err(err) if err.is_fatal() => {
                 error!(worker = %config.name, cause = %err, "giving up");
                 return Err(err);

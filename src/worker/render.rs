@@ -11,12 +11,12 @@
 //!
 //! A job whose state is older than the newest one submitted is not rendered but answered
 //! [`Answer::Superseded`] (a newer view came while it waited: its pixels would be stale,
-//! and the new view's job would wait behind it); the session tells the master.
+//! and the new view's job would wait behind it); the link tells the master.
 //!
 //! The thread lowers its own priority first (`priority`: `SCHED_IDLE` by default), so
 //! that the desk's owner never waits for it. When the worker pauses, jobs still queued
 //! are discarded ([`RenderThread::discard_queued`]); the job being rendered finishes and
-//! its result is dropped by the session.
+//! its result is dropped by the link.
 //!
 //! The null renderer (`--null-render`, for `gridlight bench master`) answers every job
 //! with constant radiance at no cost, so a benchmark measures the master alone; without

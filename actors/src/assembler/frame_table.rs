@@ -3,7 +3,7 @@
 //! A frame is opened when the scheduler queues it, marked started at its first hand-out
 //! and taken out when it is displayed (shown or skipped); it and every earlier frame
 //! count as displayed from then on. The results that reach the table were already
-//! checked by the connection that received them (`connection::session`: set range, the
+//! checked by the connection that received them (`connection::protocol_state`: set range, the
 //! job it answers, its state version, its pixel count, answered once): the table only
 //! judges time. A result for a displayed frame is late; one for a frame the table does
 //! not hold (lost in a restart of the assembler) is unknown; a second result for one set

@@ -56,7 +56,7 @@ pub struct FrameStarted {
     pub frame: FrameNo,
 }
 
-/// A connection received the answer to a job it holds, checked by its session.
+/// A connection received the answer to a job it holds, checked by its protocol state.
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct ResultArrived {

@@ -1,6 +1,6 @@
-//! The connection actor: one per worker socket, a thin shell around its [`Session`].
+//! The connection actor: one per worker socket, a thin shell around its [`ProtocolState`].
 //!
-//! The [`Session`] holds the protocol (phases, authentication, credits, state versions,
+//! The [`ProtocolState`] holds the protocol (phases, authentication, credits, state versions,
 //! result checks, the answered memory); this actor feeds it what arrives (worker
 //! messages, the scheduler's jobs, a keep-alive tick) and carries out the actions it
 //! returns: writing to the socket, asking the scheduler for jobs, forwarding the answers
@@ -13,7 +13,7 @@
 //! `Rejected` (internal error), and its supervisor, the listener, serves the worker's
 //! reconnection with a fresh actor unless the worker is backed off.
 
-pub mod session;
+pub mod protocol_state;
 pub mod workers;
 
 use std::net::SocketAddr;
@@ -38,7 +38,7 @@ use crate::wire::codec::{MasterCodec, ProtocolError};
 use crate::wire::counted_io::CountedWrite;
 use crate::wire::protocol::{ConnId, MasterMsg, WorkerMsg};
 use crate::wire::rejection::{Rejection, RejectionKind};
-use session::{Action, Session};
+use protocol_state::{Action, ProtocolState};
 use workers::WorkerTable;
 
 /// How long a rejected peer gets to read its `Rejected` before the socket is dropped.
@@ -84,7 +84,7 @@ type Writer = FramedWrite<MasterMsg, CountedWrite<OwnedWriteHalf>, MasterCodec>;
 pub struct Connection {
     id: ConnId,
     peer: SocketAddr,
-    session: Session,
+    protocol: ProtocolState,
     config: Arc<ConnectionConfig>,
     links: ConnectionLinks,
     writer: Writer,
@@ -109,12 +109,12 @@ impl Connection {
         counters: Arc<Counters>,
         peers: Arc<Mutex<PeerBackoff>>,
     ) -> Self {
-        let session = Session::new(id, config.clone(), Instant::now());
+        let protocol = ProtocolState::new(id, config.clone(), Instant::now());
         let supervision = Supervision::ending(ActorKind::Connection, counters.clone());
         Self {
             id,
             peer,
-            session,
+            protocol,
             config,
             links,
             writer,
@@ -144,17 +144,17 @@ impl Connection {
     /// gone; the jobs it held are lost and counted.
     fn ended(&mut self) {
         self.links.left_to.do_send(WorkerLeft { conn: self.id });
-        if self.session.welcomed() {
+        if self.protocol.welcomed() {
             let c = &self.counters;
-            let count = if self.session.paused() { &c.paused_workers } else { &c.workers };
+            let count = if self.protocol.paused() { &c.paused_workers } else { &c.workers };
             count.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
             self.config.workers.left(self.id);
         }
-        Counters::add(&self.counters.jobs_lost, self.session.held() as u64);
+        Counters::add(&self.counters.jobs_lost, self.protocol.held() as u64);
         let worker = self.worker.take();
         self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed, worker });
-        tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer,
-            jobs_lost = self.session.held(), "connection closed");
+        tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
+            jobs_lost = self.protocol.held(), "connection closed");
     }
 }
 
@@ -165,8 +165,8 @@ impl Supervised for Connection {
 
     fn on_start(&mut self, ctx: &mut Context<Self>) {
         tracing::debug!(conn = self.id, peer = %self.peer, "connection opened");
-        ctx.run_interval_guarded(self.session.tick_interval(), |act, ctx| {
-            let actions = act.session.tick(Instant::now());
+        ctx.run_interval_guarded(self.protocol.tick_interval(), |act, ctx| {
+            let actions = act.protocol.tick(Instant::now());
             act.apply(actions, ctx);
         });
     }
@@ -175,7 +175,7 @@ impl Supervised for Connection {
     /// jobs it held are lost and counted, and the worker's reconnection is served by a
     /// fresh actor.
     fn restart(&mut self, ctx: &mut Context<Self>) {
-        let actions = self.session.reject(Rejection::Internal);
+        let actions = self.protocol.reject(Rejection::Internal);
         self.apply(actions, ctx);
     }
 }
@@ -188,7 +188,7 @@ impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
     fn finished(&mut self, ctx: &mut Context<Self>) {
         // While closing, the writer's end stops the actor once `Rejected` is out.
         self.guarded(ctx, |c, ctx| {
-            if !c.session.closing() {
+            if !c.protocol.closing() {
                 ctx.stop();
             }
         });
@@ -198,26 +198,26 @@ impl StreamHandler<Result<WorkerMsg, ProtocolError>> for Connection {
 impl Connection {
     /// One frame from the worker (or a read error).
     fn received(&mut self, item: Result<WorkerMsg, ProtocolError>, ctx: &mut Context<Self>) {
-        if self.session.closing() {
+        if self.protocol.closing() {
             return;
         }
-        if self.session.welcomed() {
+        if self.protocol.welcomed() {
             self.config.workers.heard(self.id, 0);
         }
         match item {
             Ok(WorkerMsg::Hello { ref name, .. }) if self.backed_off(name, ctx) => {}
             Ok(msg) => {
-                let actions = self.session.on_message(msg, Instant::now());
+                let actions = self.protocol.on_message(msg, Instant::now());
                 self.apply(actions, ctx);
             }
             Err(ProtocolError::Io(e)) => {
-                tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer, cause = %e, "read failed");
+                tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer, cause = %e, "read failed");
                 self.counters.note_rejection(RejectionKind::Io);
                 self.failed = true;
                 ctx.stop();
             }
             Err(e) => {
-                let actions = self.session.on_bad_frame(&e);
+                let actions = self.protocol.on_bad_frame(&e);
                 self.apply(actions, ctx);
             }
         }
@@ -234,7 +234,7 @@ impl Connection {
                 false
             }
             Err(why) => {
-                let actions = self.session.reject(why);
+                let actions = self.protocol.reject(why);
                 self.apply(actions, ctx);
                 true
             }
@@ -245,7 +245,7 @@ impl Connection {
 impl WriteHandler<ProtocolError> for Connection {
     fn error(&mut self, err: ProtocolError, ctx: &mut Context<Self>) -> Running {
         self.guarded(ctx, |c, _| {
-            tracing::warn!(conn = c.id, worker = %c.session.name(), peer = %c.peer, cause = %err, "write failed");
+            tracing::warn!(conn = c.id, worker = %c.protocol.name(), peer = %c.peer, cause = %err, "write failed");
             c.failed = true;
         });
         Running::Stop
@@ -257,9 +257,9 @@ impl Handler<JobsAssigned> for Connection {
     fn handle(&mut self, msg: JobsAssigned, ctx: &mut Context<Self>) {
         self.guarded(ctx, |c, ctx| {
             let count = msg.0.len();
-            let actions = c.session.on_jobs(msg.0, Instant::now());
+            let actions = c.protocol.on_jobs(msg.0, Instant::now());
             if actions.is_empty() && count > 0 {
-                tracing::debug!(conn = c.id, worker = %c.session.name(), jobs_lost = count, "jobs not sent");
+                tracing::debug!(conn = c.id, worker = %c.protocol.name(), jobs_lost = count, "jobs not sent");
             }
             c.apply(actions, ctx);
         });
@@ -270,7 +270,7 @@ impl Handler<Kill> for Connection {
     type Result = ();
     fn handle(&mut self, _: Kill, ctx: &mut Context<Self>) {
         self.guarded(ctx, |c, ctx| {
-            tracing::warn!(conn = c.id, worker = %c.session.name(), peer = %c.peer, "connection killed (fault injection)");
+            tracing::warn!(conn = c.id, worker = %c.protocol.name(), peer = %c.peer, "connection killed (fault injection)");
             c.failed = true;
             ctx.stop();
         });
@@ -285,14 +285,14 @@ impl Handler<InjectPanic> for Connection {
 }
 
 impl Connection {
-    /// Carries out the session's actions, in order.
+    /// Carries out the protocol state's actions, in order.
     fn apply(&mut self, actions: Vec<Action>, ctx: &mut Context<Self>) {
         for action in actions {
             match action {
                 Action::Send(msg) => self.writer.write(msg),
                 Action::Joined => {
                     Counters::add(&self.counters.workers, 1);
-                    let (name, cores) = (self.session.name(), self.session.cores());
+                    let (name, cores) = (self.protocol.name(), self.protocol.cores());
                     self.config.workers.joined(self.id, name, cores);
                     self.config.workers.located(self.id, &self.peer.ip().to_string());
                     tracing::info!(conn = self.id, worker = %name, peer = %self.peer, "worker joined");
@@ -304,7 +304,7 @@ impl Connection {
                 }),
                 Action::Paused { reason, first } => {
                     if first {
-                        tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer,
+                        tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
                             %reason, "worker paused");
                         self.links.left_to.do_send(WorkerLeft { conn: self.id });
                         Counters::add(&self.counters.paused_workers, 1);
@@ -313,7 +313,7 @@ impl Connection {
                     self.config.workers.paused(self.id, reason);
                 }
                 Action::Resumed => {
-                    tracing::info!(conn = self.id, worker = %self.session.name(), peer = %self.peer, "worker resumed");
+                    tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer, "worker resumed");
                     self.counters.paused_workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
                     Counters::add(&self.counters.workers, 1);
                     self.config.workers.resumed(self.id);
@@ -344,7 +344,7 @@ impl Connection {
 
     /// Sends `Rejected` naming the problem, then closes once it is written.
     fn close_rejected(&mut self, why: Rejection, ctx: &mut Context<Self>) {
-        tracing::warn!(conn = self.id, worker = %self.session.name(), peer = %self.peer,
+        tracing::warn!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
             reason = %why, kind = why.kind().as_str(), "connection rejected");
         Counters::add(&self.counters.connections_rejected, 1);
         self.counters.note_rejection(why.kind());

@@ -32,12 +32,12 @@ impl App {
         for action in actions {
             match action {
                 PanelAction::Edit(edit) => self.edit(edit),
-                PanelAction::Pacing(pacing) => self.session.set_pacing(pacing),
+                PanelAction::Pacing(pacing) => self.master.set_pacing(pacing),
                 PanelAction::ResetCamera => self.edit(WindowEdit::Camera(self.controller.reset())),
                 PanelAction::Deselect => self.selected = None,
                 PanelAction::Screenshot => self.screenshot(),
                 PanelAction::SaveScript => {
-                    self.message = match self.session.save_script(self.recorder.entries()) {
+                    self.message = match self.master.save_script(self.recorder.entries()) {
                         Ok(path) => format!("wrote {}", path.display()),
                         Err(err) => format!("saving the script failed: {err}"),
                     }
@@ -83,9 +83,9 @@ impl App {
         let now = Instant::now();
         for (edit, at) in self.edits.drain() {
             self.recorder.record(&edit, now);
-            self.session.edit(edit, at);
+            self.master.edit(edit, at);
         }
-        self.session.set_view(self.settings.view);
+        self.master.set_view(self.settings.view);
         if let Some(frame) = self.frames.take() {
             let now = Instant::now();
             self.fps.tick(now);
@@ -107,7 +107,7 @@ impl App {
             }
             self.shown = Some(frame);
         }
-        self.session.refresh_status(&mut self.status);
+        self.master.refresh_status(&mut self.status);
         let Some(mut s) = self.surface.take() else { return };
         let actions = self.draw(&mut s);
         self.surface = Some(s);

@@ -55,7 +55,7 @@ impl App {
         if let Gesture::Pressed { at, button: MouseButton::Left } = self.gesture {
             // A click: pick what is under the mouse (the shown frame's scene).
             if let Some(px) = self.picture_pixel(at) {
-                self.selected = self.session.pick(px.x, px.y);
+                self.selected = self.master.pick(px.x, px.y);
                 self.message = match self.selected.and_then(|i| self.scene.objects.get(i as usize))
                 {
                     Some(o) => format!("selected {}", o.name),
@@ -73,7 +73,7 @@ impl App {
                 // Dragging with the left button from the selected object moves it.
                 let over_selected = button == MouseButton::Left
                     && self.selected.is_some()
-                    && self.picture_pixel(at).and_then(|px| self.session.pick(px.x, px.y))
+                    && self.picture_pixel(at).and_then(|px| self.master.pick(px.x, px.y))
                         == self.selected;
                 self.gesture = match (over_selected, self.selected) {
                     (true, Some(object)) => Gesture::Object { object, last: at },

@@ -3,7 +3,7 @@
 //!
 //! It runs on the main thread (winit requires it). Frames arrive through a newest-only
 //! slot filled by another thread, which wakes the loop with [`UserEvent::FrameReady`];
-//! edits leave through the [`Session`], which never blocks. So neither side waits for the
+//! edits leave through the [`MasterControl`], which never blocks. So neither side waits for the
 //! other.
 //!
 //! Files: this one (the application's state and winit's callbacks), `input.rs` (gestures
@@ -30,7 +30,7 @@ use super::manipulate::{self, Nudge};
 use super::panel::{self, PanelAction, PanelModel, PanelSettings};
 use super::record::Recorder;
 use super::status::{FpsMeter, LatencyMeter, StatusView};
-use super::{ReadyFrame, Session, UserEvent, WindowOptions};
+use super::{MasterControl, ReadyFrame, UserEvent, WindowOptions};
 use crate::gpu::DeviceOffer;
 
 mod draw;
@@ -53,7 +53,7 @@ struct Surface {
 /// The window application.
 pub struct App {
     options: WindowOptions,
-    session: Box<dyn Session>,
+    master: Box<dyn MasterControl>,
     frames: Arc<Latest<ReadyFrame>>,
     /// Where the window offers its device to the compose thread.
     offer: DeviceOffer,
@@ -80,23 +80,23 @@ pub struct App {
     /// Where the picture was drawn last, in physical pixels.
     picture_rect: Option<Rect>,
     message: String,
-    /// Set when the window must close (closed by the user, or the session ended).
+    /// Set when the window must close (closed by the user, or the master stopped).
     closing: bool,
 }
 
 impl App {
-    /// An application that shows frames from `frames` and sends edits to `session`.
+    /// An application that shows frames from `frames` and sends edits to `master`.
     pub fn new(
         options: WindowOptions,
-        session: Box<dyn Session>,
+        master: Box<dyn MasterControl>,
         frames: Arc<Latest<ReadyFrame>>,
         offer: DeviceOffer,
     ) -> Self {
-        let scene = session.initial_state();
+        let scene = master.initial_state();
         let settings = PanelSettings {
             view: options.view,
             camera_mode: Default::default(),
-            pacing: session.pacing(),
+            pacing: master.pacing(),
             shot_format: Default::default(),
             recording: options.record,
         };
@@ -106,7 +106,7 @@ impl App {
             controller: CameraController::new(scene.camera),
             scene,
             options,
-            session,
+            master,
             frames,
             offer,
             surface: None,
@@ -179,7 +179,7 @@ impl App {
             self.closing = true;
             self.offer.withdraw();
             self.frames.close();
-            self.session.shutdown();
+            self.master.shutdown();
         }
         event_loop.exit();
     }

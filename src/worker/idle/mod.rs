@@ -4,7 +4,7 @@
 //! A monitor thread samples the machine every `sample_every` ([`cpu`]: CPU times from
 //! `/proc`; [`input`]: keyboard/mouse idle time where the platform tells), feeds the
 //! samples to the pure [`decide::Decider`] and publishes each change of [`Activity`] on
-//! a watch channel; every connection of the worker follows it (`session`): it tells the
+//! a watch channel; every connection of the worker follows it (`link`): it tells the
 //! master `Paused` with the reason, drops the jobs it holds (the master never recomputes
 //! them) and sends `Resumed` and fresh credits when the decision turns. The monitor runs
 //! at normal priority (it wakes once per sample and reads two small files), so that a

@@ -88,7 +88,7 @@ pub struct Fig10 {
     pub seconds: f64,
 }
 
-/// Beyond the paper's parameters: the sessions across rate-limited links.
+/// Beyond the paper's parameters: the runs across rate-limited links.
 #[derive(Clone, Debug, Serialize)]
 pub struct Lan {
     pub workers: Vec<u32>,
@@ -105,7 +105,7 @@ pub struct Options {
     pub height: u32,
     /// Sets per frame of the offline figures (3 and 9): the master's default.
     pub sets: u32,
-    /// Sets per frame of the sessions on simulated grids: the paper's rule is that jobs
+    /// Sets per frame of the runs on simulated grids: the paper's rule is that jobs
     /// per frame must be much greater than the number of workers (up to 256 here).
     pub grid_sets: u32,
     /// Frames cached per static view (sample seeds differ per frame).

@@ -11,7 +11,7 @@ use gridlight_actors::master::{Heuristic, Pacing};
 use serde_json::json;
 
 use super::context::{Context, Cores, Fig10};
-use super::grid::{run_session, PathPacing, Session};
+use super::grid::{self, PathPacing, Run};
 use super::plot::{self, Chart, Series};
 use super::{Claim, Section};
 use crate::simgrid::{availability::PAPER_PERIOD, Availability, Curve};
@@ -44,10 +44,10 @@ pub fn run(ctx: &mut Context, p: &Fig10) -> anyhow::Result<Section> {
             // counted whole (`Outcome::used_per_second`), one more to start the count.
             let frame = (f64::from(prepared.sets) * 0.5).ceil() * job / f64::from(n);
             let seconds = p.seconds.max((MIN_FRAMES + 1.0) * frame);
-            let out = run_session(
+            let out = grid::run(
                 &ctx.exe,
                 &prepared,
-                &Session {
+                &Run {
                     availability: Availability { curve: Curve::Constant, n, period: PAPER_PERIOD },
                     pacing: Pacing::Heuristic(Heuristic::default()),
                     seconds,

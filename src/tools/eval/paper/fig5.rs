@@ -1,11 +1,11 @@
-//! Figure 5: an interactive session at a fixed frame rate on a grid whose resources
+//! Figure 5: an interactive run at a fixed frame rate on a grid whose resources
 //! follow `R_i = N − (N/4)·sin(2πi/period)`; Q_t per frame beside R_i.
 
 use gridlight_actors::master::Pacing;
 use serde_json::json;
 
 use super::context::{Context, Cores, Fig5};
-use super::grid::{run_session, FrameRecord, Outcome, PathPacing, Session};
+use super::grid::{self, FrameRecord, Outcome, PathPacing, Run};
 use super::plot::{self, Chart, Series};
 use super::stats::{correlation, two_places};
 use super::{Claim, Section};
@@ -25,10 +25,10 @@ fn moving_average(points: &[(f64, f64)], n: usize) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Seconds the session runs past the camera path's last edit.
+/// Seconds the run runs past the camera path's last edit.
 const HOLD_SECONDS: f64 = 1.0;
 
-/// Q_t of one session's frames against the resources, still and moving apart.
+/// Q_t of one run's frames against the resources, still and moving apart.
 struct Analysis {
     /// (shown frame, Q_t) of the frames compared.
     q: Vec<(f64, f64)>,
@@ -122,7 +122,7 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
         + path.len() as f64 / fps
         + HOLD_SECONDS;
     let availability = Availability { curve: p.curve, n: p.workers, period: p.period };
-    let session = |path_pacing| Session {
+    let run = |path_pacing| Run {
         availability,
         pacing: Pacing::FixedFps(p.fps),
         seconds,
@@ -133,9 +133,9 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
         gold: None,
     };
     ctx.step(format!("fig5: {seconds:.0} s sequence, {} workers varying", p.workers));
-    let sequence = run_session(&ctx.exe, &prepared, &session(PathPacing::Sequence))?;
-    ctx.step(format!("fig5: {seconds:.0} s interactive session, {} workers varying", p.workers));
-    let interactive = run_session(&ctx.exe, &prepared, &session(PathPacing::PerFrame))?;
+    let sequence = grid::run(&ctx.exe, &prepared, &run(PathPacing::Sequence))?;
+    ctx.step(format!("fig5: {seconds:.0} s interactive run, {} workers varying", p.workers));
+    let interactive = grid::run(&ctx.exe, &prepared, &run(PathPacing::PerFrame))?;
     let seq = Analysis::of(&sequence, false, &availability, fps);
     let int = Analysis::of(&interactive, true, &availability, fps);
     plot::draw(
@@ -184,7 +184,7 @@ pub fn run(ctx: &mut Context, p: &Fig5) -> anyhow::Result<Section> {
              simulated workers varying as R_i (curve {:?}, period {} frames; {} connections \
              open, those above R_i paused by the clock at the fixed rate). The view holds still \
              for {:.0} s, then the camera moves once per shown frame, as in the paper's \
-             sequences. Two sessions play the path:\n\n\
+             sequences. Two runs play the path:\n\n\
              - **The paper's sequence** (plotted against R_i, and the claims below): each frame \
              keeps the scene state it was scheduled with, as the paper's jobs carry their \
              absolute state, and only jobs of frames already shown are discarded (§4.3); the \

@@ -9,7 +9,7 @@ use serde_json::json;
 
 use super::context::{Context, Cores, Fig8};
 use super::gold;
-use super::grid::{run_session, PathPacing, Session};
+use super::grid::{self, PathPacing, Run};
 use super::plot::{self, Chart, Series};
 use super::{Claim, Section};
 use crate::simgrid::{availability::PAPER_PERIOD, Availability, Curve};
@@ -42,10 +42,10 @@ pub fn run(ctx: &mut Context, p: &Fig8) -> anyhow::Result<Section> {
     let mut rows = Vec::new();
     for (label, availability) in grids {
         ctx.step(format!("fig8: converging with {label}"));
-        let out = run_session(
+        let out = grid::run(
             &ctx.exe,
             &prepared,
-            &Session {
+            &Run {
                 availability,
                 pacing: Pacing::Heuristic(Heuristic::default()),
                 seconds: p.seconds,
@@ -130,17 +130,17 @@ pub fn run(ctx: &mut Context, p: &Fig8) -> anyhow::Result<Section> {
             .into(),
         ours: format!(
             "The Cornell box's view held still; the master accumulates results (progressive \
-             refinement). Every shown frame is kept and, after the session, reconstructed in \
+             refinement). Every shown frame is kept and, after the run, reconstructed in \
              order as the display would show it and compared with the gold standard (so that \
              reconstruction on this machine's CPU neither paces the display nor takes the cores \
              the simulated grid runs on; the paper's master reconstructed on its GPU). The gold \
              standard: {} frames rendered independently of the workers' cached frames (their \
              own sample seeds; {} spp in all), accumulated by the same reconstruction; {}. The \
-             workers cycle through {} cached frames, so a session can converge no further than \
+             workers cycle through {} cached frames, so a run can converge no further than \
              their mean. Threshold: mean FLIP {} (FLIP's mean error, not VDP's share of \
              pixels). The paper's images are HDR: the second plot measures the linear (unbounded) \
              images with HDR-FLIP (our implementation, checked against NVIDIA's), for {} frames \
-             of each session.\n\n| grid | time to threshold | final FLIP | final HDR-FLIP | useful \
+             of each run.\n\n| grid | time to threshold | final FLIP | final HDR-FLIP | useful \
              fraction |\n|---|---|---|---|---|\n{table}",
             p.gold_frames,
             p.gold_frames * prepared.state.render.spp,

@@ -1,10 +1,10 @@
-//! One session of the real master with a simulated grid (`crate::simgrid`): the
-//! experiments of `eval paper` are sessions with different grids, pacings and views.
+//! One run of the real master with a simulated grid (`crate::simgrid`): the
+//! experiments of `eval paper` are runs with different grids, pacings and views.
 //!
 //! [`Prepared`] measures the scene's cost and renders the frame cache once (written to a
-//! file the simulated-worker processes load); [`run_session`] starts the master in this
+//! file the simulated-worker processes load); [`run`] starts the master in this
 //! process with a sink that records every shown frame (and, for Figure 8, keeps it to be
-//! composed after the session and measured against a gold standard), starts the grid as
+//! composed after the run and measured against a gold standard), starts the grid as
 //! `gridlight simgrid` child processes (a few of them, each holding many connections; on
 //! a `tools::lan` testbed, on its worker hosts), plays the camera path if any (at its
 //! recorded times, or one edit per shown frame), and returns per-frame records and the
@@ -138,9 +138,9 @@ impl Timing {
     }
 }
 
-/// One session.
+/// One run.
 #[derive(Clone, Debug)]
-pub struct Session {
+pub struct Run {
     pub availability: Availability,
     pub pacing: Pacing,
     /// Measured time after the warm-up (a camera path plays from its start).
@@ -154,13 +154,13 @@ pub struct Session {
     /// on the others, every link rate-limited; `None`: loopback.
     pub network: Option<Arc<Testbed>>,
     /// Compose each shown frame and measure FLIP to this linear image (Figure 8). The
-    /// frames are kept during the session and composed after it, so that reconstruction
+    /// frames are kept during the run and composed after it, so that reconstruction
     /// on this machine's CPU neither slows the display nor takes the cores the grid's
     /// simulation runs on (the paper reconstructed on the master's GPU).
     pub gold: Option<Arc<Vec<Vec3>>>,
 }
 
-/// How a session plays its camera path.
+/// How a run plays its camera path.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathPacing {
     /// Each edit at its recorded time, whatever the display shows.
@@ -199,11 +199,11 @@ pub struct FrameRecord {
     /// FLIP to the gold standard, when one was given.
     pub flip: Option<f64>,
     /// HDR-FLIP of the linear image to the gold standard, for some of those frames
-    /// ([`HDR_POINTS`] per session).
+    /// ([`HDR_POINTS`] per run).
     pub hdr_flip: Option<f64>,
 }
 
-/// What a session measured.
+/// What a run measured.
 #[derive(Clone, Debug, Serialize)]
 pub struct Outcome {
     /// Frames of the measured interval.
@@ -225,9 +225,9 @@ pub struct Outcome {
     pub link_tx_bytes: Option<u64>,
 }
 
-/// Runs `session` on `prepared`'s scene; `exe` is the `gridlight` binary.
-pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow::Result<Outcome> {
-    let listen = match &session.network {
+/// Runs `run` on `prepared`'s scene; `exe` is the `gridlight` binary.
+pub fn run(exe: &Path, prepared: &Prepared, run: &Run) -> anyhow::Result<Outcome> {
+    let listen = match &run.network {
         Some(bed) => SocketAddr::new(bed.master().address.into(), 0),
         None => SocketAddr::from(([127, 0, 0, 1], 0)),
     };
@@ -235,10 +235,10 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         listen,
         SetsConfig { sets: prepared.sets, partition: Partition::QuasiRandom },
     );
-    config.pacing = session.pacing;
-    config.pipeline = session.pipeline.max(1);
-    config.discard_stale_jobs = session.path_pacing != PathPacing::Sequence;
-    let peak = session.availability.peak();
+    config.pacing = run.pacing;
+    config.pipeline = run.pipeline.max(1);
+    config.discard_stale_jobs = run.path_pacing != PathPacing::Sequence;
+    let peak = run.availability.peak();
     config.max_connections = config.max_connections.max(peak as usize + 8);
     let records = Arc::new(Mutex::new(Vec::new()));
     let kept = Arc::new(Mutex::new(Vec::new()));
@@ -247,23 +247,23 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
     let (shown_tx, shown_rx) = mpsc::channel();
     let sink = RecordingSink {
         records: Arc::clone(&records),
-        kept: session.gold.as_ref().map(|_| Arc::clone(&kept)),
+        kept: run.gold.as_ref().map(|_| Arc::clone(&kept)),
         clock: Arc::clone(&clock),
         newest: Arc::clone(&newest),
         shown: shown_tx,
     };
     let start = || master::start(config, prepared.state.clone(), AssetStore::new(), Box::new(sink));
-    let handle = match &session.network {
+    let handle = match &run.network {
         // The master's threads inherit the namespace of the thread that starts them.
         Some(bed) => netns::run_in(&bed.master().namespace, start)
             .context("entering the master's network namespace")?,
         None => start(),
     }
     .context("starting the master")?;
-    let _grid = spawn_grid(exe, handle.local_addr(), prepared, session)?;
+    let _grid = spawn_grid(exe, handle.local_addr(), prepared, run)?;
 
     let deadline = Instant::now() + WARMUP_TIMEOUT;
-    let want = u64::from(session.availability.at(0).min(peak));
+    let want = u64::from(run.availability.at(0).min(peak));
     while Counters::get(&handle.counters().workers) < want {
         if Instant::now() >= deadline {
             bail!(
@@ -273,7 +273,7 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-    if session.gold.is_some() {
+    if run.gold.is_some() {
         // Converging starts when the grid is there: an edit that changes nothing but the
         // version restarts the display's accumulation (the cached frames are found by
         // content, so the workers answer it as before).
@@ -285,39 +285,32 @@ pub fn run_session(exe: &Path, prepared: &Prepared, session: &Session) -> anyhow
         bail!("no frames shown with {want} simulated workers");
     }
     let link = |bed: &Arc<Testbed>| bed.counters(bed.master()).ok();
-    let link_before = session.network.as_ref().and_then(link);
+    let link_before = run.network.as_ref().and_then(link);
     let before = Sample::take(&handle);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = true;
-    match session.path_pacing {
+    match run.path_pacing {
         PathPacing::Timed => {
-            if !session.path.is_empty() {
-                handle.play_script(session.path.clone());
+            if !run.path.is_empty() {
+                handle.play_script(run.path.clone());
             }
-            std::thread::sleep(Duration::from_secs_f64(session.seconds));
+            std::thread::sleep(Duration::from_secs_f64(run.seconds));
         }
         PathPacing::PerFrame | PathPacing::Sequence => {
             // Frames shown during the warm-up are not the path's.
             while shown_rx.try_recv().is_ok() {}
-            let newest_only = session.path_pacing == PathPacing::PerFrame;
-            play_per_frame(
-                &handle,
-                &session.path,
-                session.seconds,
-                &shown_rx,
-                &newest,
-                newest_only,
-            )?;
+            let newest_only = run.path_pacing == PathPacing::PerFrame;
+            play_per_frame(&handle, &run.path, run.seconds, &shown_rx, &newest, newest_only)?;
         }
     }
     let after = Sample::take(&handle);
-    let link_after = session.network.as_ref().and_then(link);
+    let link_after = run.network.as_ref().and_then(link);
     clock.lock().unwrap_or_else(|p| p.into_inner()).measuring = false;
     drop(_grid);
     handle.stop().context("stopping the master")?;
 
     let mut all_frames: Vec<FrameRecord> =
         std::mem::take(&mut *records.lock().unwrap_or_else(|p| p.into_inner()));
-    if let Some(gold) = &session.gold {
+    if let Some(gold) = &run.gold {
         let kept = std::mem::take(&mut *kept.lock().unwrap_or_else(|p| p.into_inner()));
         measure_flip(prepared, gold, &kept, &mut all_frames)?;
     }
@@ -379,7 +372,7 @@ fn play_per_frame(
     Ok(())
 }
 
-/// Frames per session whose HDR-FLIP is measured (it costs one LDR-FLIP per exposure).
+/// Frames per run whose HDR-FLIP is measured (it costs one LDR-FLIP per exposure).
 pub const HDR_POINTS: usize = 24;
 
 /// Composes the kept frames in order, as the display would have, and sets each record's
@@ -441,15 +434,15 @@ fn spawn_grid(
     exe: &Path,
     master: SocketAddr,
     prepared: &Prepared,
-    session: &Session,
+    run: &Run,
 ) -> anyhow::Result<Children> {
     let mut children = Children::new();
-    let peak = session.availability.peak();
+    let peak = run.availability.peak();
     let mut first = 0;
     while first < peak {
         let count = WORKERS_PER_PROCESS.min(peak - first);
         // One process per worker host, round robin, when the grid is on a testbed.
-        let mut cmd = match &session.network {
+        let mut cmd = match &run.network {
             Some(bed) => {
                 let hosts = bed.workers();
                 bed.command(&hosts[(first / WORKERS_PER_PROCESS) as usize % hosts.len()], exe)
@@ -458,12 +451,12 @@ fn spawn_grid(
         };
         cmd.args(["simgrid", "--master", &master.to_string(), "--cache"])
             .arg(&prepared.cache_file)
-            .args(["--grid", &session.availability.n.to_string()])
-            .args(["--availability", curve_name(session.availability.curve)])
-            .args(["--period", &session.availability.period.to_string()])
+            .args(["--grid", &run.availability.n.to_string()])
+            .args(["--availability", curve_name(run.availability.curve)])
+            .args(["--period", &run.availability.period.to_string()])
             .args(["--first", &first.to_string(), "--count", &count.to_string()])
-            .args(["--pipeline", &session.pipeline.max(1).to_string()])
-            .args(match session.pacing {
+            .args(["--pipeline", &run.pipeline.max(1).to_string()])
+            .args(match run.pacing {
                 Pacing::FixedFps(fps) => vec!["--fps".to_string(), fps.to_string()],
                 Pacing::Heuristic(_) => Vec::new(),
             })
@@ -489,7 +482,7 @@ struct RecordingSink {
     /// Where shown frames are kept (without their owners) to be composed afterwards.
     kept: Option<Arc<Mutex<Vec<ShownFrame>>>>,
     clock: Arc<Mutex<Clock>>,
-    /// The newest scene-state version the session made.
+    /// The newest scene-state version the run made.
     newest: Arc<AtomicU64>,
     /// Each shown frame's state version, for [`PathPacing::PerFrame`].
     shown: mpsc::Sender<u64>,

@@ -1,4 +1,4 @@
-//! Beyond the paper: the same sessions with the master and the simulated grid on separate
+//! Beyond the paper: the same runs with the master and the simulated grid on separate
 //! network hosts (`tools::lan`: namespaces around a bridge, every link limited by a token
 //! bucket) at 100 Mbit/s and 1 Gbit/s, beside loopback. The paper's grid had a 100 Mbit/s
 //! network, which bounded its master at 55–60 fps with free rendering.
@@ -11,7 +11,7 @@ use gridlight_actors::master::{Heuristic, Pacing};
 use serde_json::json;
 
 use super::context::{Context, Cores, Lan};
-use super::grid::{run_session, Outcome, PathPacing, Session};
+use super::grid::{self, Outcome, PathPacing, Run};
 use super::plot::{self, Chart, Series};
 use super::table1::PAPER_RATES;
 use super::{Claim, Section};
@@ -37,17 +37,17 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
             ] {
                 let label = link.map_or("loopback".to_string(), |m| format!("{m} Mbit/s"));
                 ctx.step(format!("lan: {label}, {n} workers, {mode}"));
-                // A testbed per session: its namespaces go when the session ends.
+                // A testbed per run: its namespaces go when the run ends.
                 let network = match link {
                     Some(link_mbit) => {
                         Some(Arc::new(Testbed::build(TestbedSpec { worker_hosts: 1, link_mbit })?))
                     }
                     None => None,
                 };
-                let out = run_session(
+                let out = grid::run(
                     &ctx.exe,
                     &prepared,
-                    &Session {
+                    &Run {
                         availability: Availability {
                             curve: Curve::Constant,
                             n,
@@ -145,7 +145,7 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
             "Each link row builds a testbed: the master's host and one worker host, each on a \
              link limited to the rate in both directions by `tc tbf`, joined by a bridge; the \
              grid's process runs in the worker host's namespace and reaches the master over \
-             TCP through both links. {} workers per grid size, {:.0} s per session.",
+             TCP through both links. {} workers per grid size, {:.0} s per run.",
             p.workers.iter().map(u32::to_string).collect::<Vec<_>>().join(" and "),
             p.seconds
         ),
@@ -169,14 +169,14 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
         comparison: match (&unavailable, gigabit) {
             (Some(_), _) => "Not compared on this machine (no testbed).".into(),
             (None, Some(k)) if k >= 0.9 => format!(
-                "At 1 Gbit/s the sessions keep at least {:.0} % of their loopback rate of useful results: \
+                "At 1 Gbit/s the runs keep at least {:.0} % of their loopback rate of useful results: \
                  rendering, not the network, bounds them, as the paper found on its 100 Mbit/s \
                  network for real render costs. At 100 Mbit/s the master's inbound traffic \
                  (column above) shows how much of the link the grid uses.",
                 k * 100.0
             ),
             (None, Some(k)) => format!(
-                "At 1 Gbit/s the sessions keep only {:.0} % of their loopback rate of useful results in the \
+                "At 1 Gbit/s the runs keep only {:.0} % of their loopback rate of useful results in the \
                  worst cell: on this machine the namespaces' links and the extra hops cost more \
                  than loopback.",
                 k * 100.0
@@ -186,7 +186,7 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
         plots: vec!["lan.png".into()],
         images: Vec::new(),
         claims: vec![Claim::new(
-            "on separate hosts linked at 1 Gbit/s the sessions keep ≥ 90 % of their loopback \
+            "on separate hosts linked at 1 Gbit/s the runs keep ≥ 90 % of their loopback \
              rate of useful results (measured only with root and iproute2)",
             gigabit.is_some_and(|k| k >= 0.9),
         )],
@@ -198,7 +198,7 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
     })
 }
 
-/// One session's numbers.
+/// One run's numbers.
 fn row(label: &str, link: Option<u32>, n: u32, mode: &str, out: &Outcome) -> serde_json::Value {
     let mbit = |bytes: Option<u64>| bytes.map(|b| b as f64 * 8.0 / 1e6 / out.seconds.max(1e-9));
     json!({

@@ -9,9 +9,9 @@
 //! `results.json`.
 //!
 //! - [`context`]: options, scenes and the modelled cores shared by the experiments.
-//! - [`grid`]: one session of the master with a simulated grid.
+//! - [`grid`]: one run of the master with a simulated grid.
 //! - [`offline`]: Figures 3 and 9 (reconstruction of complete path-traced frames).
-//! - [`fig5`], [`table1`], [`fig8`], [`fig10`]: sessions on a simulated grid; [`lan`]:
+//! - [`fig5`], [`table1`], [`fig8`], [`fig10`]: runs on a simulated grid; [`lan`]:
 //!   the same across rate-limited links between network namespaces.
 //! - [`gold`]: Figure 8's gold standard, rendered once and cached.
 //! - [`plot`]: PNG line plots. [`stats`]: correlation and medians.

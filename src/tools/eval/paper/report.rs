@@ -45,9 +45,9 @@ pub fn markdown(ctx: &Context, sections: &[Section]) -> String {
     let _ = writeln!(
         s,
         "- **Real**: the master (scheduler, wait heuristic, frame assembly, reconstruction), \
-         every worker's protocol session and TCP connection (on loopback, and across \
+         every worker's protocol link and TCP connection (on loopback, and across \
          rate-limited links between network namespaces in the last section), and every pixel: \
-         path-traced with the real renderer before the sessions ({}×{}, 4 spp per frame, a \
+         path-traced with the real renderer before the runs ({}×{}, 4 spp per frame, a \
          different sample seed per cached frame; {} frames per static view, one per state of \
          the camera path).\n\
          - **Modelled**: each job's render time and which workers are available. Simulated \
@@ -131,7 +131,7 @@ fn closing(sections: &[Section]) -> String {
                 let _ = writeln!(
                     s,
                     "- Figure 5: correlation of Q_t ({}-frame mean) with the resources in the \
-                     paper's sequence {} over the whole session, {} while still, {} while moving \
+                     paper's sequence {} over the whole run, {} while still, {} while moving \
                      (mean Q_t {:.2}); gridlight's interactive default (latency first) {} while \
                      moving (mean Q_t {:.2} moving).",
                     sec.data["smooth_frames"],

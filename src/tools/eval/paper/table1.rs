@@ -6,7 +6,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::context::{Context, Cores, Table1};
-use super::grid::{run_session, PathPacing, Session};
+use super::grid::{self, PathPacing, Run};
 use super::plot::{self, Chart, Series};
 use super::{Claim, Section};
 use crate::simgrid::{availability::PAPER_PERIOD, Availability, Curve};
@@ -66,10 +66,10 @@ pub fn run(ctx: &mut Context, p: &Table1) -> anyhow::Result<Section> {
                 (format!("fixed {rate} fps"), Pacing::FixedFps(rate)),
             ] {
                 ctx.step(format!("table1: {scene}, {grid} workers, {mode}"));
-                let out = run_session(
+                let out = grid::run(
                     &ctx.exe,
                     &prepared,
-                    &Session {
+                    &Run {
                         availability,
                         pacing,
                         seconds: p.seconds,
@@ -184,7 +184,7 @@ pub fn run(ctx: &mut Context, p: &Table1) -> anyhow::Result<Section> {
             .into(),
         plots: vec!["table1.png".into()],
         images: Vec::new(),
-        claims: vec![Claim::new("fixed-rate sessions hold the paper's rates within 15 %", fixed_ok)],
+        claims: vec![Claim::new("fixed-rate runs hold the paper's rates within 15 %", fixed_ok)],
         data: json!({
             "rows": rows, "skipped": skipped, "paper_rates": PAPER_RATES, "costs": costs,
         }),

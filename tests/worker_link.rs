@@ -168,7 +168,7 @@ async fn a_worker_authenticates_fetches_assets_renders_and_reconnects() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_job_naming_an_unsent_state_ends_the_session() {
+async fn a_job_naming_an_unsent_state_ends_the_link() {
     let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let cache = tempfile::tempdir().unwrap();
     let cancel = CancellationToken::new();

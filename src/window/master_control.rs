@@ -1,5 +1,5 @@
 //! The window plugged into a running master: a frame sink that turns shown frames into
-//! pictures (G-buffer, reconstruction, the chosen view), and the [`Session`] the window
+//! pictures (G-buffer, reconstruction, the chosen view), and the [`MasterControl`] the window
 //! talks to (edits, picking, status, scripts, shutdown).
 //!
 //! The sink runs on the master's sink thread, never on the actors' or the window's: it
@@ -25,7 +25,7 @@ use super::latest::Latest;
 use super::panel::PacingChoice;
 use super::picture::{FrameImage, Picture};
 use super::status::{StatusView, WorkerRow};
-use super::{ReadyFrame, Session, UserEvent};
+use super::{MasterControl, ReadyFrame, UserEvent};
 use crate::master::compose::{Composer, Image, SharedScene};
 use crate::master::view::View;
 use crate::render;
@@ -186,8 +186,8 @@ fn scriptable(edit: &Edit) -> Edit {
     }
 }
 
-/// The [`Session`] over a running master.
-pub struct MasterSession {
+/// The [`MasterControl`] over a running master.
+pub struct LiveMaster {
     handle: Option<MasterHandle>,
     initial: SceneState,
     /// The window's view of the state, to name objects and materials in master edits.
@@ -196,16 +196,16 @@ pub struct MasterSession {
     scene: SharedScene,
     view: SharedView,
     script_path: PathBuf,
-    /// Stops what else the session started (the demo's local workers).
+    /// Stops what else was started beside the master (the demo's local workers).
     on_shutdown: Option<Box<dyn FnOnce()>>,
     /// The master's report once it stopped, for whoever started the window.
     report: SharedReport,
 }
 
-/// Where the session leaves the master's report when it stops.
+/// Where the master's report is left when it stops.
 pub type SharedReport = Arc<Mutex<Option<MasterReport>>>;
 
-impl MasterSession {
+impl LiveMaster {
     pub fn new(
         handle: MasterHandle,
         initial: SceneState,
@@ -229,15 +229,15 @@ impl MasterSession {
     }
 }
 
-impl MasterSession {
-    /// Leaves the master's report in `report` when the session stops it.
+impl LiveMaster {
+    /// Leaves the master's report in `report` when the window stops it.
     pub fn reporting_to(mut self, report: SharedReport) -> Self {
         self.report = report;
         self
     }
 }
 
-impl Session for MasterSession {
+impl MasterControl for LiveMaster {
     fn initial_state(&self) -> SceneState {
         self.initial.clone()
     }
@@ -353,7 +353,7 @@ pub fn run_master_window(
     let MasterStart { config, state, store, composer, script, on_listening, on_shutdown } = start;
     let pacing = PacingChoice::from(config.pacing);
     let report: SharedReport = Arc::default();
-    let session_report = Arc::clone(&report);
+    let live_report = Arc::clone(&report);
     super::run(options, move |proxy, frames, offer| {
         let composer = composer.with_window_device(offer);
         let scene = composer.scene();
@@ -361,25 +361,24 @@ pub fn run_master_window(
         let sink = WindowSink::new(composer, Arc::clone(&view), frames, proxy);
         let handle = gridlight_actors::master::start(config, state.clone(), store, Box::new(sink))
             .map_err(|e| format!("cannot start the master: {e}"))?;
-        let mut session =
-            MasterSession::new(handle, state, pacing, scene, view, script_path, on_shutdown)
-                .reporting_to(session_report);
-        let addr = session.handle.as_ref().map(|h| h.local_addr());
+        let mut live =
+            LiveMaster::new(handle, state, pacing, scene, view, script_path, on_shutdown)
+                .reporting_to(live_report);
+        let addr = live.handle.as_ref().map(|h| h.local_addr());
         if let Some(addr) = addr {
             if let Err(e) = on_listening(addr) {
-                session.shutdown();
+                live.shutdown();
                 return Err(e);
             }
         }
-        if let (Some(script), Some(h)) = (script, &session.handle) {
+        if let (Some(script), Some(h)) = (script, &live.handle) {
             h.play_script(script);
         }
-        Ok(Box::new(session))
+        Ok(Box::new(live))
     })?;
     let report = report.lock().unwrap_or_else(|p| p.into_inner()).take();
-    report.ok_or_else(|| {
-        super::WindowError::Session("the master did not report how it stopped".into())
-    })
+    report
+        .ok_or_else(|| super::WindowError::Start("the master did not report how it stopped".into()))
 }
 
 #[cfg(test)]

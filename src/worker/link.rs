@@ -1,21 +1,21 @@
 //! One worker connection from connect to close: the worker side of the protocol's phases.
 //!
 //! Phases (see `gridlight_actors::protocol`): Hello → Challenge → Auth → Welcome, then the
-//! assets missing from the cache are fetched by hash, and from then on the session keeps
+//! assets missing from the cache are fetched by hash, and from then on the link keeps
 //! `k` jobs in flight: it sends `Ready{credits}`, stores every `State` it is sent, hands
 //! each `Job` with its state to the render thread (which tags each result with the
 //! connection's key derived from the `Challenge` nonce) and sends each result back
 //! followed by a new credit. A writer task owns the socket's sending half and sends a heartbeat whenever
-//! the session has been quiet for `HEARTBEAT_INTERVAL`, so long renders and downloads
+//! the link has been quiet for `HEARTBEAT_INTERVAL`, so long renders and downloads
 //! never look like a dead worker; a master silent for `PEER_TIMEOUT` is gone.
 //!
-//! While the worker's owner monitor says *paused* (`--when-idle`), the session tells the
+//! While the worker's owner monitor says *paused* (`--when-idle`), the link tells the
 //! master `Paused` with the reason, forgets the jobs it holds (queued ones are never
 //! rendered, a result still being rendered is dropped: the master counts them lost and
 //! never recomputes them), ignores jobs still on their way and sends no credit; when it
 //! says *working* again, `Resumed` and fresh credits (the protocol's *Pausing* section).
 //!
-//! The session is generic over its transport (a stream of decoded `MasterMsg`s and a sink
+//! The link is generic over its transport (a stream of decoded `MasterMsg`s and a sink
 //! of `WorkerMsg`s) so that the framing stays the codec's business.
 
 use std::collections::{BTreeMap, HashSet};
@@ -43,9 +43,9 @@ use super::WorkerError;
 /// naming one that was dropped is a protocol error the master would have to cause.
 const KEPT_STATES: usize = 8;
 
-/// What one session needs to know about its worker.
+/// What one link needs to know about its worker.
 #[derive(Clone, Debug)]
-pub struct SessionConfig {
+pub struct LinkConfig {
     /// Name sent in `Hello` (unique per connection, for the master's logs).
     pub name: String,
     /// The shared secret, if any (`--secret-file`).
@@ -58,33 +58,33 @@ pub struct SessionConfig {
     pub priority: Priority,
 }
 
-/// How a session ended without an error.
+/// How a link ended without an error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SessionEnd {
+pub enum LinkEnd {
     /// Shutdown was requested (Ctrl-C).
     Shutdown,
     /// The master closed the connection.
     Closed,
 }
 
-/// Progress a session made, for the reconnect policy.
+/// Progress a link made, for the reconnect policy.
 #[derive(Debug, Default, Clone, Copy)]
-pub struct SessionProgress {
-    /// The session got past the handshake and asset fetch.
+pub struct LinkProgress {
+    /// The link got past the handshake and asset fetch.
     pub welcomed: bool,
     /// Jobs rendered and sent back.
     pub results_sent: u64,
 }
 
-/// Runs one session over `transport` until it ends, `cancel` fires or an error occurs.
+/// Runs one link over `transport` until it ends, `cancel` fires or an error occurs.
 pub async fn run<T, E>(
     transport: T,
-    config: &SessionConfig,
+    config: &LinkConfig,
     shared: &Arc<Shared>,
     cancel: &CancellationToken,
     activity: &mut watch::Receiver<Activity>,
-    progress: &mut SessionProgress,
-) -> Result<SessionEnd, WorkerError>
+    progress: &mut LinkProgress,
+) -> Result<LinkEnd, WorkerError>
 where
     T: Stream<Item = Result<MasterMsg, E>> + Sink<WorkerMsg, Error = E> + Send + 'static,
     E: std::fmt::Display + Send + 'static,
@@ -94,7 +94,7 @@ where
     let writer = tokio::spawn(write_loop(sink, out_rx));
     let result = tokio::select! {
         r = drive(&mut stream, &out_tx, config, shared, activity, progress) => r,
-        () = cancel.cancelled() => Ok(SessionEnd::Shutdown),
+        () = cancel.cancelled() => Ok(LinkEnd::Shutdown),
     };
     drop(out_tx);
     // Let the writer flush what is queued (a last result), but never hang on it.
@@ -130,11 +130,11 @@ where
 async fn drive<S, E>(
     stream: &mut S,
     out: &mpsc::Sender<WorkerMsg>,
-    config: &SessionConfig,
+    config: &LinkConfig,
     shared: &Arc<Shared>,
     activity: &mut watch::Receiver<Activity>,
-    progress: &mut SessionProgress,
-) -> Result<SessionEnd, WorkerError>
+    progress: &mut LinkProgress,
+) -> Result<LinkEnd, WorkerError>
 where
     S: Stream<Item = Result<MasterMsg, E>> + Unpin,
     E: std::fmt::Display,
@@ -201,7 +201,7 @@ where
                 Err(_) => follow = false,
             },
             msg = conn.recv() => match msg? {
-                None => return Ok(SessionEnd::Closed),
+                None => return Ok(LinkEnd::Closed),
                 Some(MasterMsg::State(state)) => {
                     debug!(version = state.version, "state received");
                     states.insert(state.version, Arc::from(state));
@@ -264,7 +264,7 @@ async fn follow_activity<S, E>(
     paused: &mut bool,
     live: &mut HashSet<(FrameNo, SetNo)>,
     render: &mut RenderThread,
-    config: &SessionConfig,
+    config: &LinkConfig,
 ) -> Result<(), WorkerError>
 where
     S: Stream<Item = Result<MasterMsg, E>> + Unpin,

@@ -1,0 +1,227 @@
+//! The protocol rules of one connection, case by case, without a socket.
+
+use super::*;
+use crate::connection::workers::WorkerTable;
+use crate::scene::asset_store::AssetStore;
+use crate::scene::state::{Camera, Resolution, SceneState};
+use crate::scheduler::job_queue::Job;
+use crate::scheduler::sets::SetTable;
+use crate::wire::auth;
+use crate::wire::protocol::PROTOCOL_VERSION;
+use crate::wire::protocol::{PackedRadiance, Partition, SetsConfig};
+use glam::Vec3;
+
+const SECRET: &[u8] = b"shared";
+
+fn config(secret: Option<&[u8]>) -> Arc<ConnectionConfig> {
+    let sets = SetsConfig { sets: 4, partition: Partition::QuasiRandom };
+    Arc::new(ConnectionConfig {
+        secret: secret.map(<[u8]>::to_vec),
+        sets: Arc::new(SetTable::new(Resolution { width: 8, height: 4 }, sets).expect("sets")),
+        assets: Arc::new(AssetStore::new()),
+        pipeline: 2,
+        heartbeat: Duration::from_secs(1),
+        peer_timeout: Duration::from_secs(10),
+        workers: Arc::new(WorkerTable::default()),
+    })
+}
+
+fn hello() -> WorkerMsg {
+    WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: "w".into(), cores: 2 }
+}
+
+fn rejection(actions: &[Action]) -> Option<&Rejection> {
+    actions.iter().find_map(|a| match a {
+        Action::Reject(r) => Some(r),
+        _ => None,
+    })
+}
+
+/// A connection through the handshake, with the key its results must carry.
+fn welcomed(now: Instant) -> (ProtocolState, ResultKey) {
+    let mut s = ProtocolState::new(7, config(None), now);
+    let out = s.on_message(hello(), now);
+    let Some(Action::Send(MasterMsg::Challenge { nonce, auth_required: false })) = out.first()
+    else {
+        panic!("no challenge: {out:?}");
+    };
+    let key = ResultKey::derive(None, nonce);
+    let out = s.on_message(WorkerMsg::Auth { mac: None }, now);
+    assert_eq!(out[0], Action::Joined);
+    assert!(matches!(&out[1], Action::Send(MasterMsg::Welcome { worker_id: 7, .. })));
+    (s, key)
+}
+
+fn job(frame: FrameNo, set: SetNo, version: StateVersion) -> Job {
+    let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 40.0);
+    let state =
+        SceneState { version, ..SceneState::empty(Resolution { width: 8, height: 4 }, camera) };
+    Job { frame, set, state: Arc::new(state) }
+}
+
+fn answer(
+    s: &ProtocolState,
+    key: &ResultKey,
+    frame: FrameNo,
+    set: SetNo,
+    v: StateVersion,
+) -> WorkerMsg {
+    let pixels = s.config.sets.set_len(set);
+    let radiance = PackedRadiance::Rgb9e5(vec![0; pixels]);
+    WorkerMsg::Result(key.seal(frame, set, v, radiance, 10))
+}
+
+#[test]
+fn a_wrong_protocol_version_is_rejected_as_final() {
+    let now = Instant::now();
+    let mut s = ProtocolState::new(1, config(None), now);
+    let out = s.on_message(
+        WorkerMsg::Hello { protocol: PROTOCOL_VERSION + 1, name: "w".into(), cores: 1 },
+        now,
+    );
+    let why = rejection(&out).expect("rejected");
+    assert_eq!(why.kind(), RejectionKind::Version);
+    assert!(crate::wire::rejection::is_final(&why.to_string()));
+    assert!(s.closing());
+    assert!(s.on_message(hello(), now).is_empty(), "a closing connection reads nothing");
+}
+
+#[test]
+fn with_a_secret_a_missing_or_wrong_mac_is_rejected_and_the_right_one_welcomed() {
+    let now = Instant::now();
+    for (mac, want) in [
+        (None, Some(Rejection::NoSecret)),
+        (Some([0u8; 32]), Some(Rejection::WrongSecret)),
+        (Some([1u8; 32]), None),
+    ] {
+        let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
+        let out = s.on_message(hello(), now);
+        let Some(Action::Send(MasterMsg::Challenge { nonce, auth_required: true })) = out.first()
+        else {
+            panic!("no challenge: {out:?}");
+        };
+        let mac = mac.map(|m| if m == [1u8; 32] { auth::mac(SECRET, nonce) } else { m });
+        let out = s.on_message(WorkerMsg::Auth { mac }, now);
+        assert_eq!(rejection(&out), want.as_ref());
+        assert_eq!(s.welcomed(), want.is_none());
+    }
+}
+
+#[test]
+fn messages_out_of_phase_are_rejected() {
+    let now = Instant::now();
+    let mut s = ProtocolState::new(1, config(None), now);
+    let out = s.on_message(WorkerMsg::Ready { credits: 1 }, now);
+    assert_eq!(rejection(&out), Some(&Rejection::Phase { message: "Ready", phase: "hello" }));
+}
+
+#[test]
+fn credits_never_let_a_worker_hold_more_than_k() {
+    let now = Instant::now();
+    let (mut s, _) = welcomed(now);
+    assert_eq!(s.on_message(WorkerMsg::Ready { credits: 5 }, now), [Action::RequestJobs(2)]);
+    assert!(s.on_message(WorkerMsg::Ready { credits: 1 }, now).is_empty(), "k already asked for");
+    s.on_jobs(vec![job(0, 0, 1)], now);
+    assert!(s.on_message(WorkerMsg::Ready { credits: 1 }, now).is_empty(), "one held, one asked");
+}
+
+#[test]
+fn a_state_version_is_sent_once_before_the_first_job_that_names_it() {
+    let now = Instant::now();
+    let (mut s, _) = welcomed(now);
+    let out = s.on_jobs(vec![job(0, 0, 1), job(0, 1, 1), job(1, 0, 2)], now);
+    let names: Vec<_> = out
+        .iter()
+        .map(|a| match a {
+            Action::Send(MasterMsg::State(st)) => format!("state {}", st.version),
+            Action::Send(MasterMsg::Job { frame, set, state_version }) => {
+                format!("job {frame}/{set}@{state_version}")
+            }
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(names, ["state 1", "job 0/0@1", "job 0/1@1", "state 2", "job 1/0@2"]);
+}
+
+#[test]
+fn results_are_checked_once_answered_duplicate_or_unknown() {
+    let now = Instant::now();
+    let (mut s, key) = welcomed(now);
+    s.on_jobs(vec![job(3, 1, 1)], now);
+    let out = s.on_message(answer(&s, &key, 3, 1, 1), now);
+    assert!(matches!(out[..], [Action::Answered(_)]), "{out:?}");
+    assert_eq!(s.held(), 0);
+    let out = s.on_message(answer(&s, &key, 3, 1, 1), now);
+    assert!(
+        out[..] == [Action::Duplicate { frame: 3, set: 1 }],
+        "a second answer is a duplicate: {out:?}"
+    );
+    let out = s.on_message(answer(&s, &key, 3, 2, 1), now);
+    assert_eq!(out[0], Action::Unknown { frame: 3, set: 2 });
+    assert_eq!(rejection(&out), Some(&Rejection::UnknownResult { frame: 3, set: 2 }));
+}
+
+#[test]
+fn a_bad_result_is_rejected_with_its_kind() {
+    let now = Instant::now();
+    type Make = fn(&ProtocolState, &ResultKey) -> WorkerMsg;
+    let cases: [(Make, RejectionKind); 4] = [
+        (|s, k| answer(s, k, 0, 9, 1), RejectionKind::SetRange),
+        (|s, k| answer(s, k, 0, 0, 2), RejectionKind::StateVersion),
+        (
+            |_, k| WorkerMsg::Result(k.seal(0, 0, 1, PackedRadiance::Rgb9e5(vec![0; 1]), 1)),
+            RejectionKind::PixelCount,
+        ),
+        (
+            |s, k| {
+                let WorkerMsg::Result(mut r) = answer(s, k, 0, 0, 1) else { unreachable!() };
+                r.frame = 1;
+                WorkerMsg::Result(r)
+            },
+            RejectionKind::Corrupt,
+        ),
+    ];
+    for (make, kind) in cases {
+        let (mut s, key) = welcomed(now);
+        s.on_jobs(vec![job(0, 0, 1)], now);
+        let msg = make(&s, &key);
+        let out = s.on_message(msg, now);
+        assert_eq!(rejection(&out).map(Rejection::kind), Some(kind), "{out:?}");
+    }
+}
+
+#[test]
+fn a_paused_worker_loses_its_jobs_and_may_not_ask_for_more() {
+    let now = Instant::now();
+    let (mut s, _) = welcomed(now);
+    s.on_message(WorkerMsg::Ready { credits: 2 }, now);
+    s.on_jobs(vec![job(0, 0, 1)], now);
+    let reason = PauseReason::OwnerInput { seconds_ago: 1.0 };
+    let out = s.on_message(WorkerMsg::Paused { reason: reason.clone() }, now);
+    assert_eq!(out, [Action::Paused { reason: reason.clone(), first: true }]);
+    assert_eq!(s.held(), 0, "the held job is lost");
+    assert!(s.on_jobs(vec![job(0, 1, 1)], now).is_empty(), "no job reaches a paused worker");
+    let again = s.on_message(WorkerMsg::Paused { reason: reason.clone() }, now);
+    assert_eq!(again, [Action::Paused { reason, first: false }]);
+    assert_eq!(s.on_message(WorkerMsg::Resumed, now), [Action::Resumed]);
+    let out = s.on_message(WorkerMsg::Resumed, now);
+    assert_eq!(rejection(&out), Some(&Rejection::NotPaused));
+}
+
+#[test]
+fn a_quiet_link_gets_heartbeats_and_a_silent_peer_is_ended() {
+    let now = Instant::now();
+    let (mut s, _) = welcomed(now);
+    assert!(s.tick(now + Duration::from_millis(500)).is_empty());
+    assert_eq!(s.tick(now + Duration::from_secs(1)), [Action::Send(MasterMsg::Heartbeat)]);
+    let out = s.tick(now + Duration::from_secs(11));
+    assert_eq!(rejection(&out).map(Rejection::kind), Some(RejectionKind::Timeout));
+}
+
+#[test]
+fn an_asset_not_in_the_manifest_is_refused() {
+    let now = Instant::now();
+    let (mut s, _) = welcomed(now);
+    let out = s.on_message(WorkerMsg::AssetRequest { hash: [3; 32] }, now);
+    assert_eq!(rejection(&out).map(Rejection::kind), Some(RejectionKind::Asset));
+}
