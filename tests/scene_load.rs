@@ -1,6 +1,6 @@
 //! Every scene in `scenes/` loads. Scenes that use the public assets are skipped, with the
-//! reason printed, when no asset directory is configured (`GRIDLIGHT_ASSETS` or
-//! `../shared/assets` beside the repository, as CI has it).
+//! reason printed, when no asset directory is configured (`GRIDLIGHT_ASSETS`, which
+//! `.ci/run` sets when the public assets are beside the clone).
 
 use std::path::{Path, PathBuf};
 
@@ -13,11 +13,7 @@ fn repo() -> PathBuf {
 
 /// The shared assets, when this machine has them.
 fn shared_assets() -> Option<PathBuf> {
-    if let Some(dir) = std::env::var_os("GRIDLIGHT_ASSETS") {
-        return Some(PathBuf::from(dir));
-    }
-    let beside = repo().join("../shared/assets");
-    beside.is_dir().then_some(beside)
+    std::env::var_os("GRIDLIGHT_ASSETS").map(PathBuf::from)
 }
 
 fn search_path(scene: &Path) -> AssetSearchPath {
