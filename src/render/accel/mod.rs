@@ -3,7 +3,7 @@
 //!
 //! Both levels are built by obvhs as compressed wide BVHs (CWBVH, eight children per
 //! node), which the GPU tracer traverses as they are. The CPU traverses meshes and the
-//! flattened small instances through `wide.rs`'s layout of the same trees (full-precision
+//! flattened small instances through `wide/`'s layout of the same trees (full-precision
 //! child boxes, one SIMD lane per child, four-triangle leaf packets); the top level, over
 //! a few instances, keeps the CWBVH traversal. A mesh's BLAS is built once and shared by every instance of
 //! it; a new scene state only rebuilds the small TLAS, so moving an object never
@@ -20,7 +20,7 @@
 //! itself. Large meshes keep the two-level path, so moving them stays cheap.
 //!
 //! Files: `triangle.rs` (the triangle test), `blas.rs` (per mesh), `tlas.rs` (per scene
-//! state), `wide.rs` (the CPU's traversal of meshes and flattened instances), `traverse.rs`
+//! state), `wide/` (the CPU's layout and traversal of meshes and flattened instances), `traverse.rs`
 //! (the CWBVH node test and traversal restart of the top level), `export.rs` (both levels
 //! as flat arrays for the GPU path tracer).
 

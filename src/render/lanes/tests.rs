@@ -1,0 +1,176 @@
+//! Every lane operator against the scalar code's bits, in each instruction set.
+
+use super::*;
+
+/// Whether this CPU runs lane types of `level`, reporting a skip where not.
+pub(crate) fn runnable(level: Level, test: &str) -> bool {
+    let (runs, why) = match level {
+        Level::Sse2 => return true,
+        Level::Avx2 => (
+            crate::render::integrator::v3::available(),
+            "the CPU lacks x86-64-v3, so the AVX2 lanes were not checked",
+        ),
+        Level::Avx512 => (
+            crate::render::integrator::v4::available(),
+            "the CPU lacks x86-64-v4, so the AVX-512 lanes were not checked",
+        ),
+    };
+    if !runs {
+        crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
+    }
+    runs
+}
+
+/// Three tests running the generic check `$check` on the SSE2, AVX2 and AVX-512 lane
+/// types (the last two skipped where this CPU lacks their build's features).
+macro_rules! isa_tests {
+    ($check:ident: $sse2:ident, $avx2:ident, $avx512:ident) => {
+        #[test]
+        fn $sse2() {
+            $check::<$crate::render::lanes::Sse2>();
+        }
+
+        #[test]
+        fn $avx2() {
+            use $crate::render::lanes::{tests::runnable, Avx2, Level};
+            if runnable(Level::Avx2, stringify!($avx2)) {
+                $check::<Avx2>();
+            }
+        }
+
+        #[test]
+        fn $avx512() {
+            use $crate::render::lanes::{tests::runnable, Avx512, Level};
+            if runnable(Level::Avx512, stringify!($avx512)) {
+                $check::<Avx512>();
+            }
+        }
+    };
+}
+pub(crate) use isa_tests;
+
+fn scalar_bits<I: Isa>() {
+    // Opaque inputs: LLVM folds constant NaN-making operations (0/0, √-x) to a NaN
+    // other than the one the hardware makes, and Rust leaves NaN bits unspecified.
+    use std::hint::black_box;
+    let a = F32s::<I>::new(black_box([
+        0.5,
+        -1.25,
+        3.0,
+        f32::NAN,
+        0.0,
+        -0.0,
+        1e-30,
+        7.5,
+        -0.0,
+        f32::INFINITY,
+        2.5,
+        -1e20,
+        f32::NAN,
+        1.0,
+        -3.0,
+        0.25,
+    ]));
+    let b = F32s::<I>::new(black_box([
+        2.0,
+        4.0,
+        -3.0,
+        1.0,
+        f32::NAN,
+        0.0,
+        3.0,
+        -7.5,
+        -0.0,
+        f32::INFINITY,
+        -2.5,
+        1e20,
+        f32::NAN,
+        0.0,
+        -3.0,
+        8.0,
+    ]));
+    for (a, b) in [(a, b), (b, a)] {
+        for i in 0..WIDTH {
+            let (x, y) = (a.0[i], b.0[i]);
+            let (max, min) = (a.max(b).0[i].to_bits(), a.min(b).0[i].to_bits());
+            assert_eq!((max, min), (x.max(y).to_bits(), x.min(y).to_bits()), "{x} {y}");
+        }
+    }
+    for i in 0..WIDTH {
+        let (x, y) = (a.0[i], b.0[i]);
+        assert_eq!((a + b).0[i].to_bits(), (x + y).to_bits());
+        assert_eq!((a - b).0[i].to_bits(), (x - y).to_bits());
+        assert_eq!((a * b).0[i].to_bits(), (x * y).to_bits());
+        assert_eq!((a / b).0[i].to_bits(), (x / y).to_bits());
+        assert_eq!((-a).0[i].to_bits(), (-x).to_bits());
+        assert_eq!(a.sqrt().0[i].to_bits(), x.sqrt().to_bits());
+        assert_eq!(a.lt(b).0[i] != 0, x < y);
+        assert_eq!(a.le(b).0[i] != 0, x <= y);
+        assert_eq!(a.gt(b).0[i] != 0, x > y);
+        assert_eq!(a.eq(b).0[i] != 0, x == y);
+        let sel = F32s::select(a.ge(b), a, b).0[i];
+        assert_eq!(sel.to_bits(), if x >= y { x } else { y }.to_bits());
+    }
+    let v = Vec3s { x: a, y: b, z: a * b };
+    for i in 0..WIDTH {
+        let s = v.lane(i);
+        assert_eq!(v.dot(v).0[i].to_bits(), s.dot(s).to_bits(), "lane {i}");
+        assert_eq!(v.max_element().0[i].to_bits(), s.max_element().to_bits(), "lane {i}");
+    }
+    let m = U32s::<I>::from_bitmask(0b1100_0101_1010_0110);
+    assert_eq!(m.bitmask(), 0b1100_0101_1010_0110);
+    assert_eq!(U32s::<I>::splat(0x0000_0001).reverse_bits(), U32s::splat(0x8000_0000));
+    let x = U32s::<I>::new([
+        0,
+        1,
+        0x8000_0000,
+        0xdead_beef,
+        0x1234_5678,
+        u32::MAX,
+        7,
+        0x0f0f_00f1,
+        0x0102_0408,
+        0x7fff_ffff,
+        0xffff_0000,
+        0x0000_ffff,
+        42,
+        0xcafe_f00d,
+        0x8000_0001,
+        0x5555_aaaa,
+    ]);
+    let y = U32s::<I>::new(std::array::from_fn(|i| {
+        [3, 0x9e37_79b9, 2, 0x7feb_352d, 0xffff_fffe, 5, 0x8000_0001, 11][i % 8] ^ (i as u32)
+    }));
+    let table: [u32; 256] = std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0101) ^ 0x55);
+    let (rev, mul, add) = (x.reverse_bits(), x.wrapping_mul(y), x.wrapping_add(y));
+    let (shr, shl, gather) = (x >> 8, x << 3, U32s::gather(&table, x & U32s::splat(0xff)));
+    let lane = U32s::<I>::new(std::array::from_fn(|i| i as u32));
+    let table16: [u32; 16] = std::array::from_fn(|i| table[i * 7]);
+    let look = U32s::lookup16(&table16, (x ^ lane) & U32s::splat(15));
+    let (eq, gt) =
+        (x.eq(U32s::select(U32s::from_bitmask(0b0100_0000_0010_0000), x, !x)), x.gt_i32(y));
+    let unit = (x >> 8).to_f32();
+    for i in 0..WIDTH {
+        let (a, b) = (x.0[i], y.0[i]);
+        assert_eq!(rev.0[i], a.reverse_bits(), "lane {i}");
+        assert_eq!(mul.0[i], a.wrapping_mul(b), "lane {i}");
+        assert_eq!(add.0[i], a.wrapping_add(b), "lane {i}");
+        assert_eq!((shr.0[i], shl.0[i]), (a >> 8, a << 3), "lane {i}");
+        assert_eq!(gather.0[i], table[(a & 0xff) as usize], "lane {i}");
+        assert_eq!(look.0[i], table16[((a ^ i as u32) & 15) as usize], "lane {i}");
+        assert_eq!(gt.0[i] != 0, a as i32 > b as i32, "lane {i}");
+        assert_eq!(unit.0[i].to_bits(), ((a >> 8) as f32).to_bits(), "lane {i}");
+    }
+    assert_eq!(eq.bitmask(), 0b0100_0000_0010_0000);
+    let t = F32s::<I>::new(std::array::from_fn(|i| {
+        [0.4, -0.6, 2.9, -3.5, 1e6, -0.0, 7.0, -1e-3][i % 8] * if i < 8 { 1.0 } else { -3.0 }
+    }));
+    let k = t.trunc_i32();
+    for i in 0..WIDTH {
+        assert_eq!(k.0[i] as i32, t.0[i] as i32, "lane {i}");
+        assert_eq!(F32s::<I>::from_i32(k).0[i], (t.0[i] as i32) as f32, "lane {i}");
+    }
+}
+
+isa_tests!(scalar_bits: sse2_lanes_give_the_scalar_bits, avx2_lanes_give_the_scalar_bits,
+    avx512_lanes_give_the_scalar_bits);
