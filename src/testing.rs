@@ -3,9 +3,11 @@
 //!
 //! The line goes to the process's real stderr, not through `eprintln!`, which the test
 //! harness captures and shows only for failing tests: a skip is visible in the output of
-//! every `cargo test`. Under CI (`CI=true`), where `.ci/run` installs Mesa's lavapipe and
-//! Xvfb, a missing GPU adapter or display means the set-up broke: the test fails instead
-//! of passing without having checked anything.
+//! every `cargo test`. Under CI (`CI=true`), where `.ci/run` installs Mesa's lavapipe,
+//! Xvfb, Slurm, munge, iproute2 and systemd and points `GRIDLIGHT_ASSETS` at the public
+//! assets, a missing adapter, display, tool or asset means the set-up broke: the test fails
+//! instead of passing without having checked anything. What CI cannot promise (root, the
+//! right to make network namespaces, a free port, a CPU feature) still skips there.
 
 use std::fmt::Display;
 use std::io::Write;
@@ -19,16 +21,20 @@ pub enum Missing {
     Display,
     /// The public test assets (`GRIDLIGHT_ASSETS`).
     Assets,
+    /// A program `.ci/run` installs (Slurm, munge, iproute2's `ip` and `tc`,
+    /// `systemd-analyze`).
+    Tool,
     /// A CPU feature (AVX2 and friends).
     CpuFeature,
-    /// A privilege or system service (root, namespaces, systemd, Slurm, a free port).
+    /// A privilege or a right of the machine (root, making network namespaces, a free
+    /// port).
     System,
 }
 
 impl Missing {
     /// Whether CI provides it, so that its absence there is a failure.
     pub fn required_in_ci(self) -> bool {
-        matches!(self, Missing::Adapter | Missing::Display)
+        matches!(self, Missing::Adapter | Missing::Display | Missing::Tool | Missing::Assets)
     }
 }
 
@@ -54,17 +60,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn ci_requires_the_adapter_and_the_display_only() {
+    fn ci_requires_what_ci_installs_only() {
         let required: Vec<Missing> = [
             Missing::Adapter,
             Missing::Display,
             Missing::Assets,
+            Missing::Tool,
             Missing::CpuFeature,
             Missing::System,
         ]
         .into_iter()
         .filter(|m| m.required_in_ci())
         .collect();
-        assert_eq!(required, vec![Missing::Adapter, Missing::Display]);
+        let installed = [Missing::Adapter, Missing::Display, Missing::Assets, Missing::Tool];
+        assert_eq!(required, installed);
     }
 }

@@ -3,13 +3,15 @@
 //! a temporary directory): a headless `gridlight master` runs, the batch script is
 //! submitted as a job array of two tasks, both workers join (the master's stats count 2),
 //! frames come back rendered, `scancel` ends the job and the master counts the workers
-//! gone. Skipped, saying so, where Slurm and munge are not installed or not root.
+//! gone. Skipped, saying so, where Slurm and munge are not installed (a failure under
+//! `CI=true`, where `.ci/run` installs them) or not root.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use gridlight::testing::Missing;
 use serde_json::Value;
 
 const EXE: &str = env!("CARGO_BIN_EXE_gridlight");
@@ -20,19 +22,21 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Why this machine cannot run the test, if it cannot.
-fn skip_reason() -> Option<String> {
-    // SAFETY: geteuid has no preconditions.
-    if unsafe { libc::geteuid() } != 0 {
-        return Some("needs root to run slurmd and munged".into());
-    }
+/// Why this machine cannot run the test, if it cannot: the tools `.ci/run` installs
+/// (missing ones fail the test under CI), then root (which CI cannot promise).
+fn skip_reason() -> Option<(Missing, String)> {
     let path = std::env::var("PATH").unwrap_or_default() + ":/usr/sbin:/sbin";
     let missing: Vec<&str> = TOOLS
         .into_iter()
         .filter(|t| !path.split(':').any(|d| Path::new(d).join(t).is_file()))
         .collect();
-    (!missing.is_empty())
-        .then(|| format!("{} not installed (apt-get install slurm-wlm munge)", missing.join(", ")))
+    if !missing.is_empty() {
+        let why = format!("{} not installed (apt-get install slurm-wlm munge)", missing.join(", "));
+        return Some((Missing::Tool, why));
+    }
+    // SAFETY: geteuid has no preconditions.
+    let root = unsafe { libc::geteuid() } == 0;
+    (!root).then(|| (Missing::System, "needs root to run slurmd and munged".into()))
 }
 
 /// The single-node cluster; stopped (every daemon killed) when dropped, also on panic.
@@ -131,8 +135,8 @@ fn workers(line: &Value) -> u64 {
 
 #[test]
 fn slurm_job_array_workers_join_render_and_leave() {
-    if let Some(why) = skip_reason() {
-        gridlight::testing::skip("Slurm end-to-end test", gridlight::testing::Missing::System, why);
+    if let Some((missing, why)) = skip_reason() {
+        gridlight::testing::skip("Slurm end-to-end test", missing, why);
         return;
     }
     let tmp = tempfile::tempdir().unwrap();

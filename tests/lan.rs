@@ -2,18 +2,26 @@
 //! link rate-limited by `tbf`), not loopback: `gridlight bench lan` run as a user runs it,
 //! on links slow enough to be saturated, must show results from every host, the master
 //! counting every worker connection, and no link carrying more than its rate; and a testbed
-//! must vanish when dropped, even by a panic. Needs root; skipped, saying why, elsewhere.
+//! must vanish when dropped, even by a panic. Needs root and iproute2; skipped, saying why,
+//! elsewhere (failing under `CI=true` where iproute2 is missing).
 
 use std::process::Command;
 
-use gridlight::tools::lan::{Testbed, TestbedSpec};
+use gridlight::testing::Missing;
+use gridlight::tools::lan::{LanError, Testbed, TestbedSpec};
 use serde_json::Value;
 
-/// Why this machine cannot build testbeds, printed as the test's skip message.
+/// Why this machine cannot build testbeds, printed as the test's skip message: a missing
+/// `ip` or `tc` fails the test under `CI=true` (`.ci/run` installs iproute2), no root or
+/// no right to make namespaces (a container's) does not.
 fn skipped(test: &str) -> bool {
     match Testbed::unavailable() {
         Some(why) => {
-            gridlight::testing::skip(test, gridlight::testing::Missing::System, why);
+            let missing = match why {
+                LanError::MissingTool(_) => Missing::Tool,
+                _ => Missing::System,
+            };
+            gridlight::testing::skip(test, missing, why);
             true
         }
         None => false,

@@ -91,9 +91,13 @@ mod tests {
     #[test]
     fn an_offered_device_reaches_the_waiting_thread() {
         // Needs an adapter; lavapipe counts. Without one there is nothing to offer.
-        let Ok(ctx) = GpuContext::new() else {
-            eprintln!("skipped: no GPU adapter");
-            return;
+        let ctx = match GpuContext::new() {
+            Ok(ctx) => ctx,
+            Err(err) => {
+                let test = "an_offered_device_reaches_the_waiting_thread";
+                crate::testing::skip(test, crate::testing::Missing::Adapter, err);
+                return;
+            }
         };
         let ctx = ctx.shared();
         let offer = DeviceOffer::new();

@@ -72,11 +72,11 @@ pub struct Testbed {
 impl Testbed {
     /// Why a testbed cannot be built on this machine, or `None` when it can (checks root and
     /// iproute2, then makes and removes a probe namespace).
-    pub fn unavailable() -> Option<String> {
+    pub fn unavailable() -> Option<LanError> {
         // SAFETY: geteuid has no preconditions.
         let uid = unsafe { libc::geteuid() };
         if uid != 0 {
-            return Some(LanError::NotRoot(uid).to_string());
+            return Some(LanError::NotRoot(uid));
         }
         let seq = SEQUENCE.fetch_add(1, Ordering::Relaxed);
         let probe = format!("{PREFIX}{}-{seq}-probe", std::process::id());
@@ -84,7 +84,7 @@ impl Testbed {
             .and_then(|_| tc(&["-V"]))
             .and_then(|_| ip(&["netns", "del", &probe]));
         let _ = ip(&["netns", "del", &probe]);
-        result.err().map(|e| e.to_string())
+        result.err()
     }
 
     /// Builds the namespaces, the bridge and the rate-limited links.

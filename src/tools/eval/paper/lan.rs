@@ -191,7 +191,7 @@ pub fn run(ctx: &mut Context, p: &Lan) -> anyhow::Result<Section> {
             gigabit.is_some_and(|k| k >= 0.9),
         )],
         data: json!({
-            "rows": rows, "links_mbit": p.links_mbit, "skipped": unavailable,
+            "rows": rows, "links_mbit": p.links_mbit, "skipped": unavailable.map(|e| e.to_string()),
             "workers": p.workers, "seconds": p.seconds,
         }),
         seconds: 0.0,
