@@ -6,6 +6,8 @@
 //! gone. Skipped, saying so, where Slurm and munge are not installed (a failure under
 //! `CI=true`, where `.ci/run` installs them) or not root.
 
+#![cfg(unix)]
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

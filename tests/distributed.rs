@@ -6,6 +6,9 @@
 //! own results as EXR (hidden `--dump-current`), so a test can tell which frame every
 //! shown pixel came from. Images are tiny and frames few: the suite runs on 2 cores.
 
+// Kills, stops and interrupts processes with POSIX signals.
+#![cfg(unix)]
+
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};

@@ -8,6 +8,9 @@
 //!
 //! Sized for a loaded 2-core machine: 3 workers, 64×48 pixels, S = 16, about a minute.
 
+// The harness stops and continues workers with POSIX signals.
+#![cfg(unix)]
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};

@@ -5,6 +5,8 @@
 //! must vanish when dropped, even by a panic. Needs root and iproute2; skipped, saying why,
 //! elsewhere (failing under `CI=true` where iproute2 is missing).
 
+#![cfg(target_os = "linux")]
+
 use std::process::Command;
 
 use gridlight::testing::Missing;

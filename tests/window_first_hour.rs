@@ -10,6 +10,9 @@
 //!
 //! Without `Xvfb` the tests say they are skipped and why (`.ci/run` installs it).
 
+// Interrupts the demo with SIGINT, as a terminal's Ctrl-C does.
+#![cfg(unix)]
+
 use std::io::Read;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};

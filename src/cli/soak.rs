@@ -2,11 +2,7 @@
 //! object at the end (issue 6). Loopback only; workers are this binary's `worker`
 //! subcommand started as child processes.
 
-use anyhow::Context;
-
 use super::GlobalArgs;
-use crate::tools::faults::harness::HarnessConfig;
-use crate::tools::faults::soak;
 
 /// Arguments of `gridlight soak`.
 #[derive(Debug, clap::Args)]
@@ -35,6 +31,22 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
         "--minutes must be in (0, 1440]"
     );
     anyhow::ensure!((1..=64).contains(&args.workers), "--workers must be 1 to 64");
+    soak(args)
+}
+
+/// The fault harness stops and continues workers with POSIX signals.
+#[cfg(not(unix))]
+fn soak(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!(
+        "gridlight soak stops and continues its worker processes with POSIX signals \
+         (SIGSTOP, SIGCONT), so it runs on Unix (Linux, macOS) only"
+    )
+}
+
+#[cfg(unix)]
+fn soak(args: Args) -> anyhow::Result<()> {
+    use crate::tools::faults::{harness::HarnessConfig, soak};
+    use anyhow::Context;
     let seed = args.seed.unwrap_or_else(|| {
         std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)

@@ -97,10 +97,19 @@ impl CostModel {
     }
 }
 
+/// CPU time consumed by the calling thread, in seconds (NaN where the clock fails, and
+/// on platforms without a thread CPU clock in `libc`: callers then time by the wall).
+#[cfg(not(any(target_os = "linux", target_os = "macos")))]
+pub fn thread_cpu_seconds() -> f64 {
+    f64::NAN
+}
+
 /// CPU time consumed by the calling thread, in seconds (NaN where the clock fails).
+#[cfg(any(target_os = "linux", target_os = "macos"))]
 pub fn thread_cpu_seconds() -> f64 {
     let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: `ts` is a valid out-pointer; this clock exists on every Linux kernel.
+    // SAFETY: `ts` is a valid out-pointer; this clock exists on every Linux kernel and
+    // on macOS since 10.12.
     let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
     if rc != 0 {
         return f64::NAN;

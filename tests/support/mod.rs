@@ -58,6 +58,8 @@ impl Proc {
         self.child.id() as i32
     }
 
+    /// Sends `sig` to the process (POSIX signals: Unix only).
+    #[cfg(unix)]
     pub fn signal(&self, sig: i32) {
         // SAFETY: kill takes plain integers; the pid is this test's own child.
         let sent = unsafe { libc::kill(self.pid(), sig) };

@@ -180,7 +180,15 @@ impl Sample {
     }
 }
 
+/// User plus system CPU time of this process (all its threads), in microseconds: NaN
+/// off Unix, where `getrusage` does not exist (`master_cpu_us_per_job` is then `null`).
+#[cfg(not(unix))]
+fn process_cpu_us() -> f64 {
+    f64::NAN
+}
+
 /// User plus system CPU time of this process (all its threads), in microseconds.
+#[cfg(unix)]
 fn process_cpu_us() -> f64 {
     // SAFETY: rusage is plain integers, for which all-zero bytes are a valid value.
     let mut usage: libc::rusage = unsafe { std::mem::zeroed() };

@@ -9,10 +9,16 @@
 //! - [`harness`]: a master (in-process) and real worker processes on loopback, with
 //!   every fault of the list at hand.
 //! - [`soak`]: random faults for a bounded time (`gridlight soak`).
+//!
+//! The harness and the soak stop and continue worker processes with POSIX signals
+//! (SIGSTOP, SIGCONT): they are compiled on Unix only, and `gridlight soak` says so
+//! elsewhere.
 
 pub mod curve;
+#[cfg(unix)]
 pub mod harness;
 pub mod invariants;
 pub mod proxy;
 pub mod rss;
+#[cfg(unix)]
 pub mod soak;

@@ -16,7 +16,9 @@
 //! - [`netns`]: running a closure on a thread inside a host's namespace (the benchmark's
 //!   in-process master).
 //!
-//! Needs root (`CAP_NET_ADMIN`) and iproute2; [`Testbed::unavailable`] says why not.
+//! Needs Linux, root (`CAP_NET_ADMIN`) and iproute2; [`Testbed::unavailable`] says why
+//! not. Elsewhere the module compiles, its system calls gated to Linux, and every entry
+//! point answers [`LanError::NotLinux`].
 
 pub mod ip;
 pub mod netns;
@@ -27,6 +29,8 @@ pub use testbed::{Host, LinkCounters, Testbed, TestbedSpec};
 /// Why a testbed could not be built or used.
 #[derive(Debug, thiserror::Error)]
 pub enum LanError {
+    #[error("network namespaces are Linux's: this machine runs {}", std::env::consts::OS)]
+    NotLinux,
     #[error("network namespaces need root (CAP_NET_ADMIN); this process runs as uid {0}")]
     NotRoot(u32),
     #[error("`{0}` was not found: install iproute2")]

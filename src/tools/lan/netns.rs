@@ -6,8 +6,6 @@
 //! A listening socket keeps its namespace whichever thread later accepts on it, which is
 //! all the benchmark's in-process master needs.
 
-use std::fs::File;
-use std::os::fd::AsRawFd;
 use std::path::PathBuf;
 
 use super::LanError;
@@ -17,9 +15,18 @@ pub fn path(name: &str) -> PathBuf {
     PathBuf::from("/run/netns").join(name)
 }
 
+/// Runs `f` on a new thread inside namespace `name` and returns what it returns (off
+/// Linux, [`LanError::NotLinux`]).
+#[cfg(not(target_os = "linux"))]
+pub fn run_in<T: Send>(_name: &str, _f: impl FnOnce() -> T + Send) -> Result<T, LanError> {
+    Err(LanError::NotLinux)
+}
+
 /// Runs `f` on a new thread inside namespace `name` and returns what it returns.
+#[cfg(target_os = "linux")]
 pub fn run_in<T: Send>(name: &str, f: impl FnOnce() -> T + Send) -> Result<T, LanError> {
-    let ns = File::open(path(name))
+    use std::os::fd::AsRawFd;
+    let ns = std::fs::File::open(path(name))
         .map_err(|source| LanError::Enter { name: name.to_string(), source })?;
     std::thread::scope(|scope| {
         scope

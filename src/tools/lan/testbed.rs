@@ -73,11 +73,23 @@ impl Testbed {
     /// Why a testbed cannot be built on this machine, or `None` when it can (checks root and
     /// iproute2, then makes and removes a probe namespace).
     pub fn unavailable() -> Option<LanError> {
-        // SAFETY: geteuid has no preconditions.
-        let uid = unsafe { libc::geteuid() };
-        if uid != 0 {
-            return Some(LanError::NotRoot(uid));
+        #[cfg(not(target_os = "linux"))]
+        return Some(LanError::NotLinux);
+        #[cfg(target_os = "linux")]
+        {
+            // SAFETY: geteuid has no preconditions.
+            let uid = unsafe { libc::geteuid() };
+            if uid != 0 {
+                return Some(LanError::NotRoot(uid));
+            }
+            Self::probe()
         }
+    }
+
+    /// Makes and removes a probe namespace: whether `ip` and `tc` run and namespaces may
+    /// be made here.
+    #[cfg(target_os = "linux")]
+    fn probe() -> Option<LanError> {
         let seq = SEQUENCE.fetch_add(1, Ordering::Relaxed);
         let probe = format!("{PREFIX}{}-{seq}-probe", std::process::id());
         let result = ip(&["netns", "add", &probe])
@@ -97,6 +109,9 @@ impl Testbed {
         }
         if spec.link_mbit == 0 {
             return Err(LanError::Spec("the link rate must be at least 1 Mbit/s".into()));
+        }
+        if cfg!(not(target_os = "linux")) {
+            return Err(LanError::NotLinux);
         }
         remove_orphans();
         let seq = SEQUENCE.fetch_add(1, Ordering::Relaxed);
@@ -228,7 +243,13 @@ impl Drop for Testbed {
     }
 }
 
+/// Removes testbed namespaces whose owning process no longer exists (there are none off
+/// Linux).
+#[cfg(not(target_os = "linux"))]
+fn remove_orphans() {}
+
 /// Removes testbed namespaces whose owning process no longer exists.
+#[cfg(target_os = "linux")]
 fn remove_orphans() {
     let Ok(list) = ip(&["netns", "list"]) else { return };
     for name in list.lines().filter_map(|l| l.split_whitespace().next()) {
