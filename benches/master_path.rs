@@ -1,6 +1,7 @@
 //! Criterion benchmarks of the master's per-result and per-frame work that
-//! `gridlight bench master` measures end to end: checking a result's tag (once per
-//! result, on the actor thread), decoding its words off the wire, and unpacking a
+//! `gridlight bench master` measures end to end: checking a result's checksum (once per
+//! result, on the actor thread), decoding its words off the wire, an encrypted
+//! channel's result sealed, opened and decoded, and unpacking a
 //! shown frame (once per frame, on the sink thread). 640×480, S = 64, as the benchmark.
 
 use std::sync::Arc;
@@ -8,6 +9,8 @@ use std::sync::Arc;
 use bytes::BytesMut;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
+use gridlight_actors::channel::Psk;
+use gridlight_actors::channel_codec::loopback_pair;
 use gridlight_actors::codec::{MasterCodec, WorkerCodec};
 use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::packed_frame::PackedFrame;
@@ -52,18 +55,24 @@ fn result(c: &mut Criterion) {
     let radiance = PackedRadiance::Rgb9e5(words(0, len));
     let mut group = c.benchmark_group("result");
     group.throughput(Throughput::Bytes(len as u64 * 4));
-    for (name, secret) in [("checksum", None), ("mac", Some(b"secret".as_slice()))] {
-        let key = ResultKey::derive(secret, &[7; 32]);
-        let r = key.seal(3, 0, 1, radiance.clone(), 0);
-        group.bench_function(format!("verify_{name}"), |b| b.iter(|| key.verify(&r)));
-    }
-    let key = ResultKey::derive(None, &[7; 32]);
+    let key = ResultKey::checksum(&[7; 32]);
+    let r = key.seal(3, 0, 1, radiance.clone(), 0);
+    group.bench_function("verify_checksum", |b| b.iter(|| key.verify(&r)));
     let mut wire = BytesMut::new();
-    WorkerCodec::new()
-        .encode(WorkerMsg::Result(key.seal(3, 0, 1, radiance, 0)), &mut wire)
-        .expect("encode");
+    WorkerCodec::new().encode(WorkerMsg::Result(r), &mut wire).expect("encode");
     group.bench_function("decode", |b| {
         b.iter(|| MasterCodec::new().decode(&mut wire.clone()).expect("decode").is_some())
+    });
+    // An encrypted channel's result: sealed (the worker's cost) and opened and decoded
+    // (the master's), one after the other; record nonces advance, so each is fresh.
+    let (mut worker, mut master) = loopback_pair(&Psk::derive(b"secret")).expect("handshake");
+    let sealed = WorkerMsg::Result(ResultKey::Channel.seal(3, 0, 1, radiance, 0));
+    group.bench_function("channel_seal_open_decode", |b| {
+        b.iter(|| {
+            let mut wire = BytesMut::new();
+            worker.encode(&sealed, &mut wire).expect("seal");
+            master.decode(&mut wire).expect("open").is_some()
+        })
     });
     group.finish();
 }

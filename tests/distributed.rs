@@ -15,11 +15,12 @@ use std::net::{SocketAddr, TcpStream};
 use std::time::Duration;
 
 use gridlight::worker::render::null_radiance;
-use gridlight_actors::codec::{to_frame, WorkerCodec};
+use gridlight_actors::channel::{initiate, Psk};
+use gridlight_actors::channel_codec::{KeySlot, WorkerChannelCodec};
 use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::protocol::{MasterMsg, PackedRadiance, WorkerMsg, PROTOCOL_VERSION};
 use serde_json::Value;
-use tokio_util::codec::Decoder;
+use tokio_util::codec::{Decoder, Encoder};
 
 mod support;
 use support::*;
@@ -180,7 +181,7 @@ fn workers_reconnect_by_themselves_when_the_master_restarts() {
 /// A raw TCP client speaking (or not) the protocol.
 struct Raw {
     stream: TcpStream,
-    codec: WorkerCodec,
+    codec: WorkerChannelCodec,
     buf: bytes::BytesMut,
     /// The result key of this connection, once `join` saw the nonce.
     key: Option<ResultKey>,
@@ -190,11 +191,27 @@ impl Raw {
     fn connect(addr: SocketAddr) -> Raw {
         let stream = TcpStream::connect(addr).unwrap();
         stream.set_read_timeout(Some(Duration::from_secs(15))).unwrap();
-        Raw { stream, codec: WorkerCodec::default(), buf: bytes::BytesMut::new(), key: None }
+        let codec = WorkerChannelCodec::new(KeySlot::new());
+        Raw { stream, codec, buf: bytes::BytesMut::new(), key: None }
     }
 
+    /// Sends a frame (a record of the channel once encrypted).
     fn send(&mut self, msg: &WorkerMsg) {
-        self.stream.write_all(&to_frame(msg).unwrap()).unwrap();
+        let mut frame = bytes::BytesMut::new();
+        self.codec.encode(msg, &mut frame).unwrap();
+        self.stream.write_all(&frame).unwrap();
+    }
+
+    /// The encrypted channel's handshake with `secret`: the master's answer, and on
+    /// success the channel's keys installed.
+    fn encrypt(&mut self, secret: &[u8]) -> Option<MasterMsg> {
+        let (init, noise) = initiate(&Psk::derive(secret)).unwrap();
+        self.send(&WorkerMsg::Handshake { protocol: PROTOCOL_VERSION, noise });
+        let answer = self.recv();
+        if let Some(MasterMsg::Handshake { noise }) = &answer {
+            self.codec.slot().install(init.finish(noise).expect("the master's answer"), None);
+        }
+        answer
     }
 
     /// The next message from the master; `None` once it closed the connection.
@@ -227,14 +244,16 @@ impl Raw {
         }
     }
 
-    /// Hello and Auth with `secret`; returns the Welcome.
+    /// The encrypted handshake, Hello and Auth with `secret`; returns the Welcome.
     fn join(&mut self, secret: &[u8]) -> MasterMsg {
+        assert!(matches!(self.encrypt(secret), Some(MasterMsg::Handshake { .. })));
         self.send(&WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: "raw".into(), cores: 1 });
         let Some(MasterMsg::Challenge { nonce, auth_required }) = self.recv() else {
             panic!("no challenge")
         };
         assert!(auth_required);
-        self.key = Some(ResultKey::derive(Some(secret), &nonce));
+        // The channel authenticates results: they carry no tag.
+        self.key = Some(ResultKey::Channel);
         self.send(&WorkerMsg::Auth { mac: Some(gridlight_actors::auth::mac(secret, &nonce)) });
         self.recv().expect("an answer to Auth")
     }
@@ -259,9 +278,16 @@ fn bad_peers_are_rejected_with_their_reason_and_the_master_goes_on() {
 
     let mut c = Raw::connect(master.addr);
     c.send(&WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: "intruder".into(), cores: 1 });
-    assert!(matches!(c.recv(), Some(MasterMsg::Challenge { auth_required: true, .. })));
-    c.send(&WorkerMsg::Auth { mac: Some([0; 32]) });
-    reasons.insert("secret", c.rejection());
+    reasons.insert("no secret", c.rejection());
+
+    let mut c = Raw::connect(master.addr);
+    match c.encrypt(b"guess") {
+        Some(MasterMsg::Rejected { reason }) => {
+            assert_eq!(c.recv(), None, "closed after the rejection");
+            reasons.insert("secret", reason);
+        }
+        other => panic!("a wrong secret's handshake was answered with {other:?}"),
+    }
 
     let mut c = Raw::connect(master.addr);
     c.stream.write_all(&[0, 0, 0, 6, 0xc1, 0xc1, 0xc1, 0xc1, 0xc1, 0xc1]).unwrap();
@@ -281,7 +307,8 @@ fn bad_peers_are_rejected_with_their_reason_and_the_master_goes_on() {
 
     let expect = [
         ("version", "version"),
-        ("secret", "authentication failed"),
+        ("no secret", "requires a shared secret"),
+        ("secret", "wrong shared secret"),
         ("garbage", "bad frame"),
         ("oversized", "exceeds"),
         ("unasked result", "not given"),
@@ -316,6 +343,30 @@ fn a_worker_with_the_wrong_secret_exits_non_zero_naming_the_reason() {
     let status = w.wait(PATIENCE).expect("the worker gives up");
     assert!(!status.success());
     assert!(w.stderr().contains("wrong shared secret"), "{}", w.stderr());
+}
+
+/// No downgrade, both ways: a worker and a master of which only one has a secret never
+/// work together, and both name the cause (the worker exits non-zero, the master logs it).
+#[test]
+fn a_secret_on_one_side_only_is_refused_by_both_naming_the_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret_file = dir.path().join("secret");
+    std::fs::write(&secret_file, "open sesame").unwrap();
+    let secret = ["--secret-file", secret_file.to_str().unwrap()];
+    let cases: [(&[&str], &[&str], &str); 2] =
+        [(&[], &secret, "does not encrypt"), (&secret, &[], "requires a shared secret")];
+    for (i, (master_args, worker_args, cause)) in cases.into_iter().enumerate() {
+        let master = Master::start(&dir.path().join(format!("m{i}")), "127.0.0.1:0", master_args);
+        let cache = dir.path().join(format!("cache{i}"));
+        let mut w = worker(master.addr, &cache, "w", 0, worker_args);
+        let status = w.wait(PATIENCE).expect("the worker gives up");
+        assert!(!status.success(), "{cause}: the worker went on");
+        assert!(w.stderr().contains(cause), "worker, {cause}: {}", w.stderr());
+        eventually("the master names the cause", || {
+            master.proc.stderr().contains(cause).then_some(())
+        });
+        assert_eq!(master.shown(), 0, "{cause}: a frame was shown");
+    }
 }
 
 #[test]

@@ -112,7 +112,7 @@ fn unauthenticated_peers_get_nothing_and_the_secret_never_crosses_the_wire() {
         state_version: 1,
         radiance: PackedRadiance::Rgb9e5(vec![0x7fff_ffff; 96]),
         render_us: 0,
-        tag: [0; gridlight_actors::integrity::TAG_LEN],
+        tag: Some([0; gridlight_actors::integrity::TAG_LEN]),
     }));
     let accepted_before = Counters::get(&m.counters().results_accepted);
     for (name, p) in [

@@ -1,8 +1,9 @@
 //! The worker runtime against a scripted master over real loopback TCP.
 //!
 //! The "master" here is a test script speaking the protocol through the real codec
-//! (`MasterCodec`), so each phase of the worker can be checked message by message:
-//! handshake with HMAC, asset download into the cache, credits, state before job,
+//! (`MasterChannelCodec`), so each phase of the worker can be checked message by
+//! message: the encrypted channel's handshake and HMAC with a secret, asset download into
+//! the cache, credits, state before job,
 //! results of the right size, reconnecting after the master goes away, and the errors
 //! that must stop a worker for good.
 
@@ -11,7 +12,8 @@ use std::time::Duration;
 use futures::{SinkExt, StreamExt};
 use gridlight::worker::idle::Activity;
 use gridlight::worker::{self, Priority, RendererKind, WhenIdle, WorkerConfig, WorkerError};
-use gridlight_actors::codec::MasterCodec;
+use gridlight_actors::channel::{respond, Psk};
+use gridlight_actors::channel_codec::{KeySlot, MasterChannelCodec};
 use gridlight_actors::packing::decode_rgb9e5;
 use gridlight_actors::protocol::{
     AssetEntry, MasterMsg, Partition, PauseReason, SetsConfig, WorkerMsg, PROTOCOL_VERSION,
@@ -23,7 +25,7 @@ use tokio::net::{TcpListener, TcpStream};
 use tokio_util::codec::Framed;
 use tokio_util::sync::CancellationToken;
 
-type Peer = Framed<TcpStream, MasterCodec>;
+type Peer = Framed<TcpStream, MasterChannelCodec>;
 
 /// No step of a scripted exchange may take longer than this.
 const STEP: Duration = Duration::from_secs(10);
@@ -72,11 +74,26 @@ const NONCE: [u8; 32] = [7; 32];
 async fn accept(listener: &TcpListener) -> Peer {
     let (socket, _) =
         tokio::time::timeout(STEP, listener.accept()).await.expect("worker connected").unwrap();
-    Framed::new(socket, MasterCodec::default())
+    Framed::new(socket, MasterChannelCodec::new(KeySlot::new()))
+}
+
+/// Answers the worker's encrypted handshake as a master with `secret`: every message
+/// after it is a record of the channel.
+async fn encrypt(peer: &mut Peer, secret: &[u8]) {
+    let WorkerMsg::Handshake { protocol, noise } = recv(peer).await else {
+        panic!("a worker with a secret starts with the encrypted handshake")
+    };
+    assert_eq!(protocol, PROTOCOL_VERSION);
+    let (answer, keys) = respond(&Psk::derive(secret), &noise).expect("same secret");
+    peer.send(MasterMsg::Handshake { noise: answer }).await.unwrap();
+    peer.codec().slot().install(keys, None);
 }
 
 /// Runs the handshake up to and including Welcome; returns the worker's name.
 async fn handshake(peer: &mut Peer, secret: Option<&[u8]>, assets: Vec<AssetEntry>) -> String {
+    if let Some(secret) = secret {
+        encrypt(peer, secret).await;
+    }
     let WorkerMsg::Hello { protocol, name, .. } = recv(peer).await else {
         panic!("expected Hello")
     };
@@ -143,8 +160,9 @@ async fn a_worker_authenticates_fetches_assets_renders_and_reconnects() {
             WorkerMsg::Result(r) => {
                 assert_eq!((r.frame, r.state_version), (11, 3));
                 assert_eq!(r.radiance.len(), table.set_len(r.set));
-                let key = gridlight_actors::integrity::ResultKey::derive(Some(secret), &NONCE);
-                assert!(key.verify(&r), "the result is not tagged with this connection's key");
+                // The channel authenticates it: no tag of its own.
+                let key = gridlight_actors::integrity::ResultKey::Channel;
+                assert!(key.verify(&r), "an encrypted connection's result carries a tag");
                 let gridlight_actors::protocol::PackedRadiance::Rgb9e5(px) = &r.radiance;
                 assert!(px.iter().all(|p| decode_rgb9e5(*p) == worker::render::null_radiance(11)));
                 answered.push(r.set);
@@ -235,9 +253,7 @@ async fn a_rejected_handshake_stops_the_worker_with_the_masters_reason() {
         CancellationToken::new(),
     ));
     let mut peer = accept(&listener).await;
-    assert!(matches!(recv(&mut peer).await, WorkerMsg::Hello { .. }));
-    peer.send(MasterMsg::Challenge { nonce: [1; 32], auth_required: true }).await.unwrap();
-    assert!(matches!(recv(&mut peer).await, WorkerMsg::Auth { mac: Some(_) }));
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Handshake { .. }));
     let reason = "authentication failed: wrong secret".to_string();
     peer.send(MasterMsg::Rejected { reason: reason.clone() }).await.unwrap();
     let outcome = tokio::time::timeout(STEP, worker).await.expect("worker gave up").unwrap();
@@ -247,6 +263,71 @@ async fn a_rejected_handshake_stops_the_worker_with_the_masters_reason() {
             assert!(err.to_string().contains(&reason), "{err}");
         }
         other => panic!("expected a fatal rejection, got {other:?}"),
+    }
+}
+
+/// True when the worker closes the connection without sending another message.
+async fn closes_without_a_word(peer: &mut Peer) -> bool {
+    match tokio::time::timeout(STEP, peer.next()).await.expect("worker acted in time") {
+        None | Some(Err(_)) => true,
+        Some(Ok(msg)) => panic!("the worker sent {msg:?}"),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_with_a_secret_sends_nothing_to_a_master_that_cannot_prove_it() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let cancel = CancellationToken::new();
+    let worker = tokio::spawn(worker::run_until(
+        config(listener.local_addr().unwrap().to_string(), cache.path(), Some(b"ours")),
+        cancel.clone(),
+    ));
+    // An impostor answers the handshake under another secret: the worker's check of the
+    // answer fails, and it closes before its Hello (its name, its cores) is sent.
+    let mut peer = accept(&listener).await;
+    let WorkerMsg::Handshake { noise, .. } = recv(&mut peer).await else { panic!("no handshake") };
+    assert!(respond(&Psk::derive(b"theirs"), &noise).is_err(), "read under another secret");
+    // It cannot read the worker's message, so it answers a handshake of its own.
+    let (answer, _) = respond(&Psk::derive(b"theirs"), &fake_first_message()).expect("own");
+    peer.send(MasterMsg::Handshake { noise: answer }).await.unwrap();
+    assert!(closes_without_a_word(&mut peer).await);
+    // A master that answers in the clear (one that does not encrypt): nothing either.
+    let mut peer = accept(&listener).await;
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Handshake { .. }));
+    peer.send(MasterMsg::Challenge { nonce: [1; 32], auth_required: false }).await.unwrap();
+    assert!(closes_without_a_word(&mut peer).await);
+    // Neither is the master's word that the secret is wrong: the worker tries again.
+    let mut peer = accept(&listener).await;
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Handshake { .. }));
+    cancel.cancel();
+    assert!(tokio::time::timeout(STEP, worker).await.unwrap().unwrap().is_ok());
+}
+
+/// A first handshake message under the impostor's own secret.
+fn fake_first_message() -> Vec<u8> {
+    gridlight_actors::channel::initiate(&Psk::derive(b"theirs")).expect("initiate").1
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_with_a_secret_stops_when_the_master_does_not_encrypt() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let worker = tokio::spawn(worker::run_until(
+        config(listener.local_addr().unwrap().to_string(), cache.path(), Some(b"s")),
+        CancellationToken::new(),
+    ));
+    let mut peer = accept(&listener).await;
+    assert!(matches!(recv(&mut peer).await, WorkerMsg::Handshake { .. }));
+    let reason = gridlight_actors::rejection::Rejection::NotEncrypting.to_string();
+    peer.send(MasterMsg::Rejected { reason: reason.clone() }).await.unwrap();
+    let outcome = tokio::time::timeout(STEP, worker).await.expect("worker gave up").unwrap();
+    match outcome {
+        Err(err) => {
+            assert!(err.is_fatal(), "{err}");
+            assert!(err.to_string().contains("does not encrypt"), "{err}");
+        }
+        Ok(()) => panic!("the worker went on with a master that does not encrypt"),
     }
 }
 

@@ -53,4 +53,4 @@ pub use discovery::announcer;
 pub use presenter::{sink, stats};
 pub use scene::{asset_store, edit, script, state};
 pub use scheduler::sets;
-pub use wire::{auth, codec, integrity, packing, protocol, rejection};
+pub use wire::{auth, channel, channel_codec, codec, integrity, packing, protocol, rejection};

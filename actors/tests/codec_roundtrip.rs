@@ -138,7 +138,7 @@ fn worker_msg() -> impl Strategy<Value = WorkerMsg> {
             any::<u64>(),
             prop::collection::vec(any::<u32>(), 0..300),
             any::<u64>(),
-            any::<[u8; gridlight_actors::integrity::TAG_LEN]>(),
+            prop::option::of(any::<[u8; gridlight_actors::integrity::TAG_LEN]>()),
         )
             .prop_map(|(frame, set, state_version, px, render_us, tag)| WorkerMsg::Result(
                 JobResult {
@@ -159,6 +159,8 @@ fn worker_msg() -> impl Strategy<Value = WorkerMsg> {
         }),
         Just(WorkerMsg::Resumed),
         (any::<u64>(), any::<u32>()).prop_map(|(frame, set)| WorkerMsg::Superseded { frame, set }),
+        (any::<u32>(), prop::collection::vec(any::<u8>(), 0..64))
+            .prop_map(|(protocol, noise)| WorkerMsg::Handshake { protocol, noise }),
     ]
 }
 
@@ -187,6 +189,7 @@ fn master_msg() -> impl Strategy<Value = MasterMsg> {
         (any::<u64>(), any::<u32>(), any::<u64>())
             .prop_map(|(frame, set, state_version)| MasterMsg::Job { frame, set, state_version }),
         Just(MasterMsg::Heartbeat),
+        prop::collection::vec(any::<u8>(), 0..64).prop_map(|noise| MasterMsg::Handshake { noise }),
     ]
 }
 

@@ -9,7 +9,8 @@ use std::time::Duration;
 use bytes::BytesMut;
 use glam::Vec3;
 use gridlight_actors::auth;
-use gridlight_actors::codec::{to_frame, WorkerCodec};
+use gridlight_actors::channel::{initiate, Psk};
+use gridlight_actors::channel_codec::{KeySlot, WorkerChannelCodec};
 use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::master::{MasterConfig, ShownFrame, SinkError};
 use gridlight_actors::packing::pack;
@@ -18,7 +19,7 @@ use gridlight_actors::sets::SetTable;
 use gridlight_actors::sink::FrameSink;
 use gridlight_actors::state::*;
 use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
-use tokio_util::codec::Decoder;
+use tokio_util::codec::{Decoder, Encoder};
 
 pub const W: u32 = 32;
 pub const H: u32 = 24;
@@ -63,10 +64,11 @@ pub fn collect_sink() -> (Box<dyn FrameSink>, Receiver<ShownFrame>) {
     (Box::new(CollectSink(tx)), rx)
 }
 
-/// A scripted worker speaking the protocol by hand over a blocking socket.
+/// A scripted worker speaking the protocol by hand over a blocking socket (encrypted
+/// once [`Peer::handshake`] was given a secret).
 pub struct Peer {
     stream: TcpStream,
-    codec: WorkerCodec,
+    codec: WorkerChannelCodec,
     buf: BytesMut,
     /// The connection's result key, once the handshake saw the nonce.
     key: Option<ResultKey>,
@@ -77,7 +79,8 @@ impl Peer {
         let stream = TcpStream::connect(addr).expect("connect");
         stream.set_read_timeout(Some(Duration::from_secs(30))).expect("timeout");
         stream.set_nodelay(true).expect("nodelay");
-        Self { stream, codec: WorkerCodec::new(), buf: BytesMut::new(), key: None }
+        let codec = WorkerChannelCodec::new(KeySlot::new());
+        Self { stream, codec, buf: BytesMut::new(), key: None }
     }
 
     /// This peer's own address (what the master's logs name).
@@ -91,13 +94,13 @@ impl Peer {
     }
 
     pub fn send(&mut self, msg: &WorkerMsg) {
-        let frame = to_frame(msg).expect("encode");
-        self.stream.write_all(&frame).expect("send");
+        assert!(self.try_send(msg), "send");
     }
 
-    /// Sends; false when the master went away.
+    /// Sends (a record of the channel once encrypted); false when the master went away.
     pub fn try_send(&mut self, msg: &WorkerMsg) -> bool {
-        to_frame(msg).is_ok_and(|f| self.stream.write_all(&f).is_ok())
+        let mut frame = BytesMut::new();
+        self.codec.encode(msg, &mut frame).is_ok() && self.stream.write_all(&frame).is_ok()
     }
 
     pub fn send_raw(&mut self, bytes: &[u8]) {
@@ -166,11 +169,14 @@ impl Peer {
 
     /// [`Peer::handshake`] under the worker name `name` (the master's per-peer key).
     pub fn handshake_as(&mut self, name: &str, secret: Option<&[u8]>) -> Result<u64, String> {
+        if let Some(secret) = secret {
+            self.encrypt(secret)?;
+        }
         self.send(&WorkerMsg::Hello { protocol: PROTOCOL_VERSION, name: name.into(), cores: 1 });
         let nonce = match self.recv_non_heartbeat()? {
-            MasterMsg::Challenge { nonce, auth_required } => {
-                // As a real worker: the secret keys result tags only when the master has one.
-                self.key = Some(ResultKey::derive(secret.filter(|_| auth_required), &nonce));
+            MasterMsg::Challenge { nonce, .. } => {
+                let encrypted = self.codec.slot().encrypted();
+                self.key = Some(ResultKey::for_connection(encrypted, &nonce));
                 nonce
             }
             MasterMsg::Rejected { reason } => return Err(reason),
@@ -179,6 +185,22 @@ impl Peer {
         self.send(&WorkerMsg::Auth { mac: secret.map(|s| auth::mac(s, &nonce)) });
         match self.recv_non_heartbeat()? {
             MasterMsg::Welcome { worker_id, .. } => Ok(worker_id),
+            MasterMsg::Rejected { reason } => Err(reason),
+            m => Err(format!("unexpected {m:?}")),
+        }
+    }
+
+    /// The encrypted channel's handshake with `secret`, as a worker with one starts;
+    /// `Err` with the master's rejection.
+    pub fn encrypt(&mut self, secret: &[u8]) -> Result<(), String> {
+        let (init, noise) = initiate(&Psk::derive(secret)).map_err(|e| e.to_string())?;
+        self.send(&WorkerMsg::Handshake { protocol: PROTOCOL_VERSION, noise });
+        match self.recv_non_heartbeat()? {
+            MasterMsg::Handshake { noise } => {
+                let keys = init.finish(&noise).map_err(|e| e.to_string())?;
+                self.codec.slot().install(keys, None);
+                Ok(())
+            }
             MasterMsg::Rejected { reason } => Err(reason),
             m => Err(format!("unexpected {m:?}")),
         }
@@ -224,7 +246,7 @@ impl Peer {
         version: StateVersion,
         radiance: PackedRadiance,
     ) -> WorkerMsg {
-        let key = self.key.clone().unwrap_or_else(|| ResultKey::derive(None, &[0; 32]));
+        let key = self.key.clone().unwrap_or_else(|| ResultKey::checksum(&[0; 32]));
         WorkerMsg::Result(key.seal(frame, set, version, radiance, 1))
     }
 }

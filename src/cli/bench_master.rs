@@ -18,8 +18,8 @@ pub struct MasterArgs {
     /// Jobs each worker connection holds (k).
     #[arg(long, default_value_t = gridlight_actors::master::DEFAULT_PIPELINE)]
     pub pipeline: u32,
-    /// Authenticate the workers with a random shared secret, as `--secret-file` does: every
-    /// result then carries a keyed BLAKE3 tag instead of an XXH3 checksum.
+    /// Give master and workers a random shared secret, as `--secret-file` does: every
+    /// connection is then encrypted (and results carry no checksum of their own).
     #[arg(long)]
     pub secret: bool,
 }

@@ -217,9 +217,9 @@ fn load_script(
 
 fn warn_if_open(config: &MasterConfig) {
     if config.secret.is_none() {
-        warn!("no --secret-file: ANY host that can reach this master may join as a worker");
+        warn!("no --secret-file: ANY host that can reach this master may join as a worker, and nothing is encrypted");
         eprintln!(
-            "gridlight master: no --secret-file given, so any host on the network may join as a worker"
+            "gridlight master: no --secret-file given, so any host on the network may join as a worker, and the scene and its pixels cross the network unencrypted"
         );
     }
 }

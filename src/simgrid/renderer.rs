@@ -221,7 +221,7 @@ mod tests {
     #[tokio::test]
     async fn a_newer_views_job_supersedes_the_held_jobs_not_yet_started() {
         let (grid, old, new, table) = grid();
-        let key = ResultKey::derive(None, &[0; gridlight_actors::auth::NONCE_LEN]);
+        let key = ResultKey::checksum(&[0; gridlight_actors::auth::NONCE_LEN]);
         let (tx, mut rx) = mpsc::unbounded_channel();
         let mut conn = SimConnection::new(grid, 1);
         let job = |frame, set, state: &SceneState| RenderJob {

@@ -1,11 +1,12 @@
 //! One worker connection from connect to close: the worker side of the protocol's phases.
 //!
-//! Phases (see `gridlight_actors::protocol`): Hello → Challenge → Auth → Welcome, then the
-//! assets missing from the cache are fetched by hash, and from then on the link keeps
-//! `k` jobs in flight: it sends `Ready{credits}`, stores every `State` it is sent, hands
-//! each `Job` with its state to the render thread (which tags each result with the
-//! connection's key derived from the `Challenge` nonce) and sends each result back
-//! followed by a new credit. A writer task owns the socket's sending half and sends a heartbeat whenever
+//! Phases (see `gridlight_actors::protocol`): Hello → Challenge → Auth → Welcome (inside
+//! the encrypted channel with a secret: `connect` ran its handshake), then the assets
+//! missing from the cache are fetched by hash, and from then on the link keeps `k` jobs
+//! in flight: it sends `Ready{credits}`, stores every `State` it is sent, hands each `Job`
+//! with its state to the render thread (which tags each result with a checksum seeded by
+//! the `Challenge` nonce on a plain connection, and leaves it to the channel on an
+//! encrypted one) and sends each result back followed by a new credit. A writer task owns the socket's sending half and sends a heartbeat whenever
 //! the link has been quiet for `HEARTBEAT_INTERVAL`, so long renders and downloads
 //! never look like a dead worker; a master silent for `PEER_TIMEOUT` is gone.
 //!
@@ -153,9 +154,9 @@ where
     }
     let mac = config.secret.as_ref().map(|s| gridlight_actors::auth::mac(s, &nonce));
     conn.send(WorkerMsg::Auth { mac }).await?;
-    // The master keys result tags with the secret only when it has one (it said so).
-    let key_secret = config.secret.as_deref().filter(|_| auth_required).map(Vec::as_slice);
-    let result_key = ResultKey::derive(key_secret, &nonce);
+    // With a secret the link is encrypted (`connect` made sure of it): the channel
+    // authenticates results; without one they carry a checksum.
+    let result_key = ResultKey::for_connection(config.secret.is_some(), &nonce);
     let (worker_id, sets, manifest) = match conn.recv_handshake().await? {
         MasterMsg::Welcome { worker_id, sets, assets } => (worker_id, sets, assets),
         other => return Err(unexpected("Welcome", &other)),
@@ -401,6 +402,7 @@ fn unexpected(wanted: &str, got: &MasterMsg) -> WorkerError {
         MasterMsg::State(_) => "State",
         MasterMsg::Job { .. } => "Job",
         MasterMsg::Heartbeat => "Heartbeat",
+        MasterMsg::Handshake { .. } => "Handshake",
     };
     warn!(wanted, got = name, "unexpected message from the master");
     WorkerError::Protocol(format!("expected {wanted}, got {name}"))

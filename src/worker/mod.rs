@@ -12,6 +12,7 @@
 //! `--master` it finds a master that announces itself on the LAN ([`discover`]).
 //!
 //! - [`cache`]: the hash-keyed on-disk asset cache.
+//! - `channel`: the encrypted channel's handshake, before a link's first message.
 //! - [`backoff`]: reconnect delays.
 //! - [`link`]: one connection to the master: its protocol phases.
 //! - [`render`]: the render thread (path tracer or null renderer).
@@ -24,6 +25,7 @@
 
 pub mod backoff;
 pub mod cache;
+mod channel;
 pub mod discover;
 pub mod gpu;
 pub mod idle;
@@ -36,6 +38,7 @@ pub mod shared;
 use std::sync::Arc;
 use std::time::Duration;
 
+use gridlight_actors::channel_codec::{KeySlot, WorkerChannelCodec};
 use rand::SeedableRng;
 use tokio::net::TcpStream;
 use tokio_util::codec::Framed;
@@ -104,6 +107,8 @@ pub enum WorkerError {
     Connection(String),
     #[error("protocol violation by the master: {0}")]
     Protocol(String),
+    #[error("encrypted channel: {0}")]
+    Channel(#[from] gridlight_actors::channel::ChannelError),
     #[error(transparent)]
     Cache(#[from] cache::CacheError),
     #[error("loading the scene's assets: {0}")]
@@ -230,7 +235,12 @@ pub(crate) async fn connection_loop(
     let mut rng = rand::rngs::StdRng::from_entropy();
     loop {
         let mut progress = LinkProgress::default();
-        let outcome = match connect(&master).await {
+        // Connecting (and the channel's handshake) gives way to a shutdown at once.
+        let connected = tokio::select! {
+            c = connect(&master, config.secret.as_deref()) => c,
+            () = cancel.cancelled() => return Ok(()),
+        };
+        let outcome = match connected {
             Ok(transport) => {
                 link::run(transport, &config, &shared, &cancel, &mut activity, &mut progress).await
             }
@@ -260,18 +270,22 @@ pub(crate) async fn connection_loop(
     }
 }
 
-/// Opens a framed connection to the master.
+/// Opens a framed connection to the master, encrypted when there is a secret.
 async fn connect(
     master: &str,
-) -> Result<Framed<TcpStream, gridlight_actors::codec::WorkerCodec>, WorkerError> {
+    secret: Option<&Vec<u8>>,
+) -> Result<Framed<TcpStream, WorkerChannelCodec>, WorkerError> {
     let stream = tokio::time::timeout(CONNECT_TIMEOUT, TcpStream::connect(master))
         .await
         .map_err(|_| WorkerError::Connection(format!("connecting to {master}: timed out")))?
         .map_err(|e| WorkerError::Connection(format!("connecting to {master}: {e}")))?;
     // Results are small and latency matters more than packet count.
     let _ = stream.set_nodelay(true);
-    let mut framed = Framed::new(stream, gridlight_actors::codec::WorkerCodec::default());
+    let mut framed = Framed::new(stream, WorkerChannelCodec::new(KeySlot::new()));
     // Room for a result and the credit after it, so that the writer's batch is one write.
     framed.set_backpressure_boundary(WRITE_BATCH_BYTES);
+    if let Some(secret) = secret {
+        channel::encrypt(&mut framed, secret).await?;
+    }
     Ok(framed)
 }

@@ -3,8 +3,10 @@
 //! The [`ProtocolState`] holds the protocol (phases, authentication, credits, state versions,
 //! result checks, the answered memory); this actor feeds it what arrives (worker
 //! messages, the scheduler's jobs, a keep-alive tick) and carries out the actions it
-//! returns: writing to the socket, asking the scheduler for jobs, forwarding the answers
-//! to its jobs to the frame assembler (duplicates and unknown results stop here, counted),
+//! returns: writing to the socket (switching both codec halves to the encrypted channel's
+//! records when the channel's handshake is done), asking the scheduler for jobs,
+//! forwarding the answers to its jobs to the frame assembler (duplicates and unknown
+//! results stop here, counted),
 //! keeping the worker table and the counters, and closing after a
 //! `Rejected` that names the problem. Any protocol violation ends this connection only;
 //! every log line names the peer. The jobs it held are never handed out again.
@@ -34,7 +36,8 @@ use crate::scheduler::{JobAnswered, WorkerLeft, WorkerReady};
 use crate::supervision::{
     ActorKind, Guard, GuardedTimers, InjectPanic, PeerBackoff, Supervised, Supervision,
 };
-use crate::wire::codec::{MasterCodec, ProtocolError};
+use crate::wire::channel_codec::{KeySlot, MasterChannelCodec};
+use crate::wire::codec::ProtocolError;
 use crate::wire::counted_io::CountedWrite;
 use crate::wire::protocol::{ConnId, MasterMsg, WorkerMsg};
 use crate::wire::rejection::{Rejection, RejectionKind};
@@ -78,7 +81,14 @@ pub struct ConnectionLinks {
     pub ended_to: Recipient<ConnectionEnded>,
 }
 
-type Writer = FramedWrite<MasterMsg, CountedWrite<OwnedWriteHalf>, MasterCodec>;
+type Writer = FramedWrite<MasterMsg, CountedWrite<OwnedWriteHalf>, MasterChannelCodec>;
+
+/// What the actor writes to: the socket's framed sending half, and the slot from which
+/// both codec halves (this one and the reading one) take the channel's keys.
+pub struct Outbox {
+    pub writer: Writer,
+    pub keys: KeySlot,
+}
 
 /// One worker's link.
 pub struct Connection {
@@ -88,6 +98,8 @@ pub struct Connection {
     config: Arc<ConnectionConfig>,
     links: ConnectionLinks,
     writer: Writer,
+    /// Where the channel's keys go once its handshake is done (none without a secret).
+    keys: KeySlot,
     counters: Arc<Counters>,
     /// Ended on an error (the listener's per-peer policy counts these).
     failed: bool,
@@ -103,7 +115,7 @@ impl Connection {
     pub fn new(
         id: ConnId,
         peer: SocketAddr,
-        writer: Writer,
+        outbox: Outbox,
         config: Arc<ConnectionConfig>,
         links: ConnectionLinks,
         counters: Arc<Counters>,
@@ -117,7 +129,8 @@ impl Connection {
             protocol,
             config,
             links,
-            writer,
+            writer: outbox.writer,
+            keys: outbox.keys,
             counters,
             failed: false,
             peers,
@@ -290,6 +303,10 @@ impl Connection {
         for action in actions {
             match action {
                 Action::Send(msg) => self.writer.write(msg),
+                // After the handshake's answer, written plain above; before anything else.
+                Action::Encrypt(keys) => {
+                    self.keys.install(keys, Some(self.counters.cipher_ns.clone()))
+                }
                 Action::Joined => {
                     Counters::add(&self.counters.workers, 1);
                     let (name, cores) = (self.protocol.name(), self.protocol.cores());

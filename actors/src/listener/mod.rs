@@ -20,12 +20,13 @@ use tokio::io::AsyncWriteExt;
 use tokio::net::{TcpListener, TcpStream};
 use tokio_util::codec::FramedRead;
 
-use crate::connection::{Connection, ConnectionConfig, ConnectionLinks, Kill};
+use crate::connection::{Connection, ConnectionConfig, ConnectionLinks, Kill, Outbox};
 use crate::presenter::stats::Counters;
 use crate::supervision::{
     ActorKind, Guard, InjectPanic, PeerBackoff, PeerPolicy, RestartPolicy, Supervised, Supervision,
 };
-use crate::wire::codec::{to_frame, MasterCodec};
+use crate::wire::channel_codec::{KeySlot, MasterChannelCodec};
+use crate::wire::codec::to_frame;
 use crate::wire::counted_io::{CountedRead, CountedWrite};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::MasterMsg;
@@ -163,10 +164,14 @@ impl Listener {
         let (peers, faults) = (self.peers.clone(), self.supervision.faults());
         let addr = Connection::create(move |ctx| {
             let read = CountedRead::new(read, counters.bytes_in.clone());
-            ctx.add_stream(FramedRead::new(read, MasterCodec::new()));
+            // Plain until the channel's handshake installs keys in the slot (with a secret).
+            let keys = KeySlot::new();
+            ctx.add_stream(FramedRead::new(read, MasterChannelCodec::new(keys.clone())));
             let write = CountedWrite::new(write, counters.bytes_out.clone());
-            let writer = actix::io::FramedWrite::new(write, MasterCodec::new(), ctx);
-            Connection::new(id, peer, writer, config, links, counters, peers).with_faults(faults)
+            let codec = MasterChannelCodec::new(keys.clone());
+            let writer = actix::io::FramedWrite::new(write, codec, ctx);
+            let outbox = Outbox { writer, keys };
+            Connection::new(id, peer, outbox, config, links, counters, peers).with_faults(faults)
         });
         self.conns.insert(id, addr);
     }

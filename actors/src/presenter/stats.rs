@@ -21,6 +21,9 @@ pub struct Counters {
     /// Shared with every connection's socket wrappers.
     pub bytes_in: Arc<AtomicU64>,
     pub bytes_out: Arc<AtomicU64>,
+    /// Nanoseconds every encrypted connection's codecs spent in the channel's cipher
+    /// (shared with them like the byte counters).
+    pub cipher_ns: Arc<AtomicU64>,
     /// Connections that passed the handshake, have not ended and are not paused.
     pub workers: AtomicU64,
     /// Connections whose worker paused (its desk's owner is active) and has not resumed.

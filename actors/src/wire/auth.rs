@@ -1,4 +1,5 @@
-//! Challenge-response authentication with a shared secret (docs/design.md, decision 5).
+//! Challenge-response authentication with a shared secret (docs/design.md, decision 5),
+//! and the secret file.
 //!
 //! The master sends a fresh random nonce; the worker answers HMAC-SHA256(secret, nonce);
 //! the master recomputes and compares in constant time. The secret itself never travels,
@@ -15,6 +16,10 @@ type HmacSha256 = Hmac<Sha256>;
 
 /// Bytes of a nonce and of a MAC.
 pub const NONCE_LEN: usize = 32;
+
+/// A secret shorter than this is warned about when read: one recorded handshake of the
+/// encrypted channel lets an eavesdropper test guesses of the secret offline.
+pub const SHORT_SECRET: usize = 16;
 
 /// Errors reading a secret file.
 #[derive(Debug, Error)]
@@ -58,6 +63,10 @@ pub fn read_secret_file(path: &Path) -> Result<Vec<u8>, SecretError> {
     }
     if bytes.is_empty() {
         return Err(SecretError::Empty { path: path.to_owned() });
+    }
+    if bytes.len() < SHORT_SECRET {
+        tracing::warn!(path = %path.display(), bytes = bytes.len(),
+            "the shared secret is short: one recorded handshake lets an eavesdropper test guesses of it offline; use 32 random bytes (head -c 32 /dev/urandom | base64)");
     }
     Ok(bytes)
 }

@@ -15,6 +15,7 @@ use serde::Serialize;
 use thiserror::Error;
 use tokio_util::codec::{Decoder, Encoder};
 
+use crate::wire::channel::ChannelError;
 use crate::wire::protocol::{MasterMsg, WorkerMsg, MAX_FRAME_LEN};
 
 /// Bytes of the length prefix.
@@ -33,6 +34,8 @@ pub enum ProtocolError {
     Decode(#[from] rmp_serde::decode::Error),
     #[error("unencodable message: {0}")]
     Encode(#[from] rmp_serde::encode::Error),
+    #[error(transparent)]
+    Channel(#[from] ChannelError),
 }
 
 /// Reads frames of `In`, writes frames of `Out`.
@@ -121,7 +124,7 @@ impl<In, Out: Serialize> Encoder<&Out> for FrameCodec<In, Out> {
 }
 
 /// Appends one frame to `dst`; on error `dst` is left as it was.
-fn encode_into<T: Serialize>(
+pub(crate) fn encode_into<T: Serialize>(
     msg: &T,
     max_len: usize,
     dst: &mut BytesMut,
@@ -176,7 +179,7 @@ mod tests {
             state_version: 2,
             radiance: PackedRadiance::Rgb9e5(vec![1, 2, 3]),
             render_us: 99,
-            tag: [7; TAG_LEN],
+            tag: Some([7; TAG_LEN]),
         });
         let bytes = to_frame(&msg).expect("encode");
         let mut codec = MasterCodec::new();
@@ -236,7 +239,7 @@ mod tests {
                 state_version: 3,
                 radiance: PackedRadiance::Rgb9e5(vec![0xdead_beef; n]),
                 render_us: 4,
-                tag: [0; TAG_LEN],
+                tag: Some([0; TAG_LEN]),
             })
         };
         let (small, big) =

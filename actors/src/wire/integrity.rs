@@ -1,27 +1,22 @@
-//! Per-result integrity: the tag every [`JobResult`] carries over what it claims.
+//! Per-result integrity: what makes sure an altered result never reaches an image.
 //!
 //! A result's frame and set are checked against the jobs a connection holds, and its
 //! pixel count against the set, but a flipped bit *inside* the radiance still decodes
 //! (every `u32` is a valid RGB9E5 value): without a check over the payload a corrupted
-//! result would put wrong pixels on screen. So each result carries a 128-bit
-//! `tag = H(domain ‖ frame ‖ set ‖ state_version ‖ radiance words)` under a
-//! per-connection key, and the master recomputes it before anything else looks at it.
-//!
-//! The key material is per connection: `K = HMAC-SHA256(secret, "gridlight result key
-//! v1" ‖ nonce)`, the nonce being the handshake's `Challenge`. Both sides can derive it,
-//! it never travels, and it differs for every connection, so a result cannot be replayed
-//! on another connection either. `H` depends on what the tag has to prove:
-//! - **With a shared secret** the tag is an authenticator: keyed BLAKE3 under `K`,
-//!   truncated to 128 bits (BLAKE3's keyed mode is a PRF, hence a MAC). Only a holder of
-//!   the secret can compute `K`: a man in the middle can neither alter pixels nor forge
-//!   results of an authenticated worker.
-//! - **Without a secret** `K` follows from the public nonce, so no tag could
-//!   authenticate; it is a checksum against accidental corruption (a broken proxy, a
-//!   buggy peer, the bit flips TCP's 16-bit sum misses): XXH3-128 seeded with `K`.
-//!   A cryptographic hash would buy nothing here and cost much: BLAKE3 over the 19 kB of
-//!   a 640×480, S = 64 result took a fifth of the machine in `gridlight bench master`
-//!   (once on the worker, once on the master's single actor thread); XXH3 is an order
-//!   of magnitude faster.
+//! result would put wrong pixels on screen. What checks it depends on the connection:
+//! - **With a shared secret** the connection is encrypted (`wire::channel`): every record
+//!   carries the channel's AEAD tag, checked before a byte of it is decoded, so an altered
+//!   result ends the connection before it is a message. A second tag inside the result
+//!   would prove nothing more and cost as much again, so results carry none
+//!   ([`ResultKey::Channel`]). (Until protocol 8 they carried a keyed BLAKE3 tag, which
+//!   cost a third of the master's throughput in `gridlight bench master`.)
+//! - **Without a secret** nothing can authenticate (anyone can compute any key), so the
+//!   tag is a checksum against accidental corruption (a broken proxy, a buggy peer, the bit
+//!   flips TCP's 16-bit sum misses): `tag = XXH3-128(domain ‖ frame ‖ set ‖ state_version
+//!   ‖ radiance words)` seeded with `K = HMAC-SHA256("", "gridlight result key v1" ‖
+//!   nonce)`, the nonce being the handshake's `Challenge`, so the seed differs per
+//!   connection and a result cannot be replayed on another one by accident. The master
+//!   recomputes it before anything else looks at the result.
 
 use hmac::{Hmac, Mac};
 use sha2::Sha256;
@@ -42,11 +37,12 @@ const KEY_DOMAIN: &[u8] = b"gridlight result key v1";
 /// Separates result tags from any other use of the key.
 const TAG_DOMAIN: &[u8] = b"gridlight result v1";
 
-/// The per-connection key results are tagged with.
+/// How a connection's results are checked.
 #[derive(Clone)]
 pub enum ResultKey {
-    /// A shared secret is configured: tags are keyed BLAKE3 (a MAC).
-    Authenticated([u8; 32]),
+    /// The connection is encrypted: the channel authenticates every byte, results carry
+    /// no tag of their own.
+    Channel,
     /// No secret: tags are XXH3-128 with this seed (a checksum).
     Checksum(u64),
 }
@@ -55,33 +51,41 @@ impl std::fmt::Debug for ResultKey {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         // Never print key material.
         f.write_str(match self {
-            ResultKey::Authenticated(_) => "ResultKey::Authenticated(..)",
+            ResultKey::Channel => "ResultKey::Channel",
             ResultKey::Checksum(_) => "ResultKey::Checksum(..)",
         })
     }
 }
 
 impl ResultKey {
-    /// The key of the connection whose `Challenge` carried `nonce`.
-    pub fn derive(secret: Option<&[u8]>, nonce: &[u8; NONCE_LEN]) -> Self {
-        let mut m = keyed(secret.unwrap_or_default());
+    /// The checksum key of a plain connection whose `Challenge` carried `nonce`.
+    pub fn checksum(nonce: &[u8; NONCE_LEN]) -> Self {
+        let mut m = keyed(b"");
         m.update(KEY_DOMAIN);
         m.update(nonce);
         let k: [u8; 32] = m.finalize().into_bytes().into();
-        match secret {
-            Some(_) => ResultKey::Authenticated(k),
-            None => ResultKey::Checksum(u64::from_le_bytes(k[..8].try_into().expect("8 bytes"))),
+        ResultKey::Checksum(u64::from_le_bytes(k[..8].try_into().expect("8 bytes")))
+    }
+
+    /// The key of a connection: [`ResultKey::Channel`] when it is encrypted, else the
+    /// checksum of its `Challenge` nonce.
+    pub fn for_connection(encrypted: bool, nonce: &[u8; NONCE_LEN]) -> Self {
+        if encrypted {
+            ResultKey::Channel
+        } else {
+            ResultKey::checksum(nonce)
         }
     }
 
-    /// The tag of a result with these fields.
+    /// The tag a result with these fields carries (`None` on an encrypted connection).
     pub fn tag(
         &self,
         frame: FrameNo,
         set: SetNo,
         state_version: StateVersion,
         radiance: &PackedRadiance,
-    ) -> [u8; TAG_LEN] {
+    ) -> Option<[u8; TAG_LEN]> {
+        let ResultKey::Checksum(seed) = self else { return None };
         let fields = |update: &mut dyn FnMut(&[u8])| {
             update(TAG_DOMAIN);
             update(&frame.to_le_bytes());
@@ -95,22 +99,9 @@ impl ResultKey {
                 }
             }
         };
-        match self {
-            ResultKey::Authenticated(key) => {
-                let mut m = blake3::Hasher::new_keyed(key);
-                fields(&mut |b| {
-                    m.update(b);
-                });
-                let mut tag = [0; TAG_LEN];
-                m.finalize_xof().fill(&mut tag);
-                tag
-            }
-            ResultKey::Checksum(seed) => {
-                let mut m = Xxh3::with_seed(*seed);
-                fields(&mut |b| m.update(b));
-                m.digest128().to_le_bytes()
-            }
-        }
+        let mut m = Xxh3::with_seed(*seed);
+        fields(&mut |b| m.update(b));
+        Some(m.digest128().to_le_bytes())
     }
 
     /// A result with its tag computed over the other fields.
@@ -126,9 +117,14 @@ impl ResultKey {
         JobResult { frame, set, state_version, radiance, render_us, tag }
     }
 
-    /// True when `r.tag` matches its fields; compares in constant time.
+    /// True when `r.tag` is what its fields call for: none on an encrypted connection
+    /// (the channel checked every byte), the matching checksum on a plain one.
     pub fn verify(&self, r: &JobResult) -> bool {
-        self.tag(r.frame, r.set, r.state_version, &r.radiance).ct_eq(&r.tag).into()
+        match (self.tag(r.frame, r.set, r.state_version, &r.radiance), &r.tag) {
+            (None, None) => true,
+            (Some(want), Some(got)) => want.ct_eq(got).into(),
+            _ => false,
+        }
     }
 }
 
@@ -159,70 +155,52 @@ mod tests {
 
     #[test]
     fn a_sealed_result_verifies_and_any_changed_field_does_not() {
-        // Both kinds of key: the MAC (secret) and the checksum (no secret).
-        for secret in [Some(b"s".as_slice()), None] {
-            let key = ResultKey::derive(secret, &[1; NONCE_LEN]);
-            let r = result(&key);
-            assert!(key.verify(&r), "{key:?}");
-            let mut changed = r.clone();
-            let PackedRadiance::Rgb9e5(words) = &mut changed.radiance;
-            words[417] ^= 1 << 20;
-            assert!(!key.verify(&changed), "{key:?}: a flipped radiance bit went unnoticed");
-            let changes: [fn(&mut JobResult); 6] = [
-                |r: &mut JobResult| r.frame += 1,
-                |r: &mut JobResult| r.set += 1,
-                |r: &mut JobResult| r.state_version += 1,
-                |r: &mut JobResult| r.tag[0] ^= 1,
-                |r: &mut JobResult| r.tag[TAG_LEN - 1] ^= 0x80,
-                |r: &mut JobResult| {
-                    let PackedRadiance::Rgb9e5(w) = &mut r.radiance;
-                    w.pop();
-                },
-            ];
-            for change in changes {
-                let mut c = r.clone();
-                change(&mut c);
-                assert!(!key.verify(&c), "{key:?}: {c:?}");
-            }
-            // render_us is advisory (timing), not pixels: not covered.
-            let mut timing = r;
-            timing.render_us += 1;
-            assert!(key.verify(&timing), "{key:?}");
+        let key = ResultKey::checksum(&[1; NONCE_LEN]);
+        let r = result(&key);
+        assert!(key.verify(&r), "{key:?}");
+        let mut changed = r.clone();
+        let PackedRadiance::Rgb9e5(words) = &mut changed.radiance;
+        words[417] ^= 1 << 20;
+        assert!(!key.verify(&changed), "a flipped radiance bit went unnoticed");
+        let changes: [fn(&mut JobResult); 7] = [
+            |r: &mut JobResult| r.frame += 1,
+            |r: &mut JobResult| r.set += 1,
+            |r: &mut JobResult| r.state_version += 1,
+            |r: &mut JobResult| r.tag.as_mut().expect("tag")[0] ^= 1,
+            |r: &mut JobResult| r.tag.as_mut().expect("tag")[TAG_LEN - 1] ^= 0x80,
+            |r: &mut JobResult| r.tag = None,
+            |r: &mut JobResult| {
+                let PackedRadiance::Rgb9e5(w) = &mut r.radiance;
+                w.pop();
+            },
+        ];
+        for change in changes {
+            let mut c = r.clone();
+            change(&mut c);
+            assert!(!key.verify(&c), "{c:?}");
         }
+        // render_us is advisory (timing), not pixels: not covered.
+        let mut timing = r;
+        timing.render_us += 1;
+        assert!(key.verify(&timing));
     }
 
     #[test]
-    fn keys_differ_per_connection_and_per_secret() {
-        let n1 = [1; NONCE_LEN];
-        let n2 = [2; NONCE_LEN];
-        let r = result(&ResultKey::derive(Some(b"s".as_slice()), &n1));
-        assert!(
-            !ResultKey::derive(Some(b"s".as_slice()), &n2).verify(&r),
-            "replayable on another nonce"
-        );
-        assert!(
-            !ResultKey::derive(Some(b"t".as_slice()), &n1).verify(&r),
-            "forgeable without the secret"
-        );
-        assert!(!ResultKey::derive(None, &n1).verify(&r), "forgeable from the nonce alone");
-        let open = result(&ResultKey::derive(None, &n1));
-        assert!(ResultKey::derive(None, &n1).verify(&open));
-        assert!(
-            !ResultKey::derive(None, &n2).verify(&open),
-            "checksum not bound to the connection"
-        );
-        assert!(
-            !ResultKey::derive(Some(b"".as_slice()), &n1).verify(&open),
-            "checksum taken for a MAC"
-        );
+    fn checksums_differ_per_connection() {
+        let r = result(&ResultKey::checksum(&[1; NONCE_LEN]));
+        assert!(!ResultKey::checksum(&[2; NONCE_LEN]).verify(&r), "not bound to the connection");
     }
 
     #[test]
-    fn the_key_is_not_the_handshake_mac() {
-        let n = [3; NONCE_LEN];
-        let ResultKey::Authenticated(k) = ResultKey::derive(Some(b"s".as_slice()), &n) else {
-            panic!("a secret gives an authenticating key");
-        };
-        assert_ne!(k, crate::wire::auth::mac(b"s", &n));
+    fn an_encrypted_connection_carries_no_tag_and_refuses_one() {
+        let r = result(&ResultKey::Channel);
+        assert_eq!(r.tag, None, "a tag the channel makes redundant");
+        assert!(ResultKey::Channel.verify(&r));
+        let tagged = result(&ResultKey::checksum(&[1; NONCE_LEN]));
+        assert!(!ResultKey::Channel.verify(&tagged), "a checksummed result on an encrypted link");
+        assert!(
+            !ResultKey::checksum(&[1; NONCE_LEN]).verify(&r),
+            "an untagged result on a plain link"
+        );
     }
 }

@@ -8,10 +8,37 @@
 //! ends that connection (never the process) after a [`MasterMsg::Rejected`] naming
 //! the problem where the peer can still read it.
 //!
+//! # The encrypted channel (a shared secret)
+//! With a shared secret, the frames above travel inside an encrypted channel
+//! (`wire::channel`, Noise `NNpsk0` under a key derived from the secret). Invariants:
+//! - **Handshake first, in two plain frames.** The worker's first frame is
+//!   [`WorkerMsg::Handshake`] (protocol version, Noise message 1); the master answers
+//!   [`MasterMsg::Handshake`] (message 2) or a plain `Rejected`. Nothing else is ever
+//!   plain on such a connection: from the next byte on, each direction is a sequence of
+//!   *records* (2-byte big-endian length `16 < n <= 65535`, then `n` bytes of ciphertext
+//!   and AEAD tag, the nonce the record's index in its direction, never sent).
+//! - **Records carry the frame stream.** Their plaintexts, concatenated, are frames as
+//!   above, decoded by the same decoder under the same limits; a frame larger than a
+//!   record (assets, scene states, results) is cut into consecutive records of at most
+//!   65519 plaintext bytes; no record holds bytes of two frames.
+//! - **Authenticated before parsed.** A record is opened (tag checked) before any of its
+//!   bytes is decoded; one that fails (altered, dropped, replayed, reordered, another
+//!   key) ends the connection, so an altered result, job, state or asset never becomes a
+//!   message. Results therefore carry no tag of their own (`JobResult::tag` is `None`).
+//! - **No downgrade.** A master with a secret answers a plain `Hello` with `Rejected`
+//!   ("requires a shared secret"); a master without one answers a `Handshake` with
+//!   `Rejected` ("does not encrypt"); a worker with a secret sends nothing but its
+//!   `Handshake` until the master's answer has authenticated. Both rejections are final
+//!   for the worker.
+//! - **Secret proven without sending it, keys fresh per connection.** Noise's PSK mixes
+//!   the secret into the handshake; both sides' ephemeral keys make every connection's
+//!   keys new (forward secrecy, replays fail). Inside the channel, the phases below run
+//!   unchanged.
+//!
 //! # Phases (master's view of one connection)
-//! 1. **Hello**: the worker's first frame is [`WorkerMsg::Hello`]. A wrong
-//!    `protocol` gets `Rejected` and close. The master answers [`MasterMsg::Challenge`]
-//!    with a fresh random nonce.
+//! 1. **Hello**: the worker's first frame (inside the channel, with a secret) is
+//!    [`WorkerMsg::Hello`]. A wrong `protocol` gets `Rejected` and close. The master
+//!    answers [`MasterMsg::Challenge`] with a fresh random nonce.
 //! 2. **Auth**: the worker answers [`WorkerMsg::Auth`] with HMAC-SHA256(secret, nonce)
 //!    (`None` when it has no secret). With a secret configured on the master, a
 //!    missing or wrong MAC gets `Rejected` and close; the secret itself never travels.
@@ -38,15 +65,14 @@
 //! failing is refused as itself, and another worker on the same host is not.
 //!
 //! # Result integrity
-//! Every [`JobResult`] carries a 128-bit `tag` over (frame, set, state version,
-//! radiance) under a per-connection key; see [`crate::wire::integrity`]. The key is derived
-//! from the shared secret (empty without one) and this connection's `Challenge` nonce,
-//! so it never travels and differs per connection. The master verifies the tag before
-//! any other check of a result; a mismatch is rejected like any bad input (kind
-//! `corrupt`), so a corrupted payload never reaches an image. With a secret the tag is
-//! keyed BLAKE3 and authenticates: a man in the middle cannot alter or forge pixels.
-//! Without one it is XXH3-128, a checksum against accidental corruption only.
-//! `render_us` is advisory and not covered.
+//! On an encrypted connection the channel authenticates every byte of every result
+//! (above). On a plain one every [`JobResult`] carries a 128-bit `tag`, an XXH3-128
+//! checksum over (frame, set, state version, radiance) seeded per connection from the
+//! `Challenge` nonce (see [`crate::wire::integrity`]): against accidental corruption
+//! only, since without a secret anyone can compute it. The master verifies the tag (or
+//! its absence) before any other check of a result; a mismatch is rejected like any bad
+//! input (kind `corrupt`), so a corrupted payload never reaches an image. `render_us`
+//! is advisory and not covered.
 //!
 //! # Pausing (a guest on someone's desk)
 //! In the work phase a worker may send [`WorkerMsg::Paused`] with a [`PauseReason`]
@@ -89,7 +115,9 @@ use crate::scene::state::{SceneState, StateVersion};
 /// 7: results carry reflected radiance, no longer divided by the albedo (the master
 ///    demodulates by its G-buffer's); an older worker's pixels would be wrong.
 /// 8: `WorkerMsg::Superseded` (a held job dropped unrendered for a newer state's job).
-pub const PROTOCOL_VERSION: u32 = 8;
+/// 9: with a secret, the encrypted channel (`Handshake` messages, records); results carry
+///    a tag only on plain connections (`JobResult::tag` is optional), keyed BLAKE3 is gone.
+pub const PROTOCOL_VERSION: u32 = 9;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
@@ -252,6 +280,13 @@ pub enum WorkerMsg {
     /// discards stale jobs). It is lost like any other, never handed out again; a `Ready`
     /// returns its credit.
     Superseded { frame: FrameNo, set: SetNo },
+    /// First frame on a connection with a shared secret, sent plain: the worker's
+    /// protocol version and the Noise handshake's first message.
+    Handshake {
+        protocol: u32,
+        #[serde(with = "serde_bytes")]
+        noise: Vec<u8>,
+    },
 }
 
 /// Why a worker paused: its desk's owner is using the machine.
@@ -300,8 +335,9 @@ pub struct JobResult {
     pub radiance: PackedRadiance,
     /// Time spent rendering, in microseconds.
     pub render_us: u64,
-    /// [`crate::wire::integrity::ResultKey::tag`] over the fields above (`render_us` excepted).
-    pub tag: [u8; crate::wire::integrity::TAG_LEN],
+    /// [`crate::wire::integrity::ResultKey::tag`] over the fields above (`render_us`
+    /// excepted) on a plain connection; `None` on an encrypted one.
+    pub tag: Option<[u8; crate::wire::integrity::TAG_LEN]>,
 }
 
 /// Messages from the master to a worker.
@@ -327,4 +363,10 @@ pub enum MasterMsg {
     Job { frame: FrameNo, set: SetNo, state_version: StateVersion },
     /// Nothing else to say; keeps the connection alive.
     Heartbeat,
+    /// The answer to [`WorkerMsg::Handshake`], sent plain: the Noise handshake's second
+    /// message. Every byte after it is a record of the encrypted channel.
+    Handshake {
+        #[serde(with = "serde_bytes")]
+        noise: Vec<u8>,
+    },
 }

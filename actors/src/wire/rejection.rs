@@ -26,6 +26,9 @@ pub enum RejectionKind {
     EmptyFrame,
     OversizedFrame,
     BadFrame,
+    /// A record of the encrypted channel failed authentication (altered on the way, or
+    /// not from the peer that made the handshake).
+    Decrypt,
     UnknownResult,
     PixelCount,
     StateVersion,
@@ -53,6 +56,7 @@ impl RejectionKind {
             Self::EmptyFrame => "empty_frame",
             Self::OversizedFrame => "oversized_frame",
             Self::BadFrame => "bad_frame",
+            Self::Decrypt => "decrypt",
             Self::UnknownResult => "unknown_result",
             Self::PixelCount => "pixel_count",
             Self::StateVersion => "state_version",
@@ -75,10 +79,12 @@ pub enum Rejection {
     Version { worker: u32, master: u32 },
     #[error("worker name must be 1 to {max} bytes")]
     Name { max: usize },
-    #[error("{AUTH_PREFIX}: the master requires a shared secret (--secret-file) and the worker sent none")]
+    #[error("{AUTH_PREFIX}: the master requires a shared secret (--secret-file) and an encrypted connection; the worker sent none")]
     NoSecret,
     #[error("{AUTH_PREFIX}: wrong shared secret")]
     WrongSecret,
+    #[error("{AUTH_PREFIX}: the worker has a shared secret and asks for an encrypted connection, but this master has none and does not encrypt (start it with the same --secret-file, or the worker without one)")]
+    NotEncrypting,
     #[error("unexpected {message} during the {phase} phase")]
     Phase { message: &'static str, phase: &'static str },
     #[error("unexpected {message} while the worker is paused")]
@@ -116,7 +122,7 @@ impl Rejection {
     pub fn kind(&self) -> RejectionKind {
         match self {
             Self::Version { .. } => RejectionKind::Version,
-            Self::NoSecret | Self::WrongSecret => RejectionKind::Auth,
+            Self::NoSecret | Self::WrongSecret | Self::NotEncrypting => RejectionKind::Auth,
             Self::Phase { .. } | Self::WhilePaused { .. } | Self::NotPaused => RejectionKind::Phase,
             Self::Corrupt { .. } => RejectionKind::Corrupt,
             Self::SetRange { .. } => RejectionKind::SetRange,
@@ -159,6 +165,7 @@ mod tests {
         assert!(is_final(&Rejection::Version { worker: 1, master: 2 }.to_string()));
         assert!(is_final(&Rejection::NoSecret.to_string()));
         assert!(is_final(&Rejection::WrongSecret.to_string()));
+        assert!(is_final(&Rejection::NotEncrypting.to_string()));
         for retry in [
             Rejection::Timeout { secs: 1.0 },
             Rejection::Internal,

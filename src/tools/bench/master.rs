@@ -6,7 +6,9 @@
 //! loopback, so the process's CPU time (getrusage) is the master's alone. Frames are
 //! paced to be shown only when complete (Q_min = Q_max = 1), so frames per second are
 //! whole assembled frames. Each configuration warms up for a few frames, then is
-//! measured over a fixed interval; one JSON object per line.
+//! measured over a fixed interval; one JSON object per line. Before the workers start,
+//! a scripted worker joins [`HANDSHAKES`] times (connect to `Welcome`, the encrypted
+//! channel's handshake included with a secret): the median is `handshake_ms`.
 
 use std::net::SocketAddr;
 use std::process::{Command, Stdio};
@@ -23,6 +25,7 @@ use gridlight_actors::stats::Counters;
 use serde::Serialize;
 
 use crate::children::Children;
+use crate::tools::bench::join;
 
 /// Connection counts measured by default (issue 3).
 pub const DEFAULT_CONNECTIONS: [u32; 4] = [1, 8, 32, 64];
@@ -34,6 +37,8 @@ pub const SETS: u32 = 64;
 pub const WARMUP_FRAMES: u64 = 5;
 /// Longest wait for the warm-up.
 pub const WARMUP_TIMEOUT: Duration = Duration::from_secs(30);
+/// Joins timed for `handshake_ms`.
+pub const HANDSHAKES: usize = 15;
 
 /// One line of the benchmark's output.
 #[derive(Debug, Clone, Serialize)]
@@ -45,8 +50,18 @@ pub struct MasterBench {
     pub bytes_per_pixel: f64,
     /// Result bytes (worker → master) per pixel delivered.
     pub bytes_in_per_pixel: f64,
+    /// Bytes on the wire (both directions) per result accepted: the result, its credit
+    /// and its job, with framing (and records and tags when encrypted).
+    pub bytes_per_result: f64,
+    /// Microseconds the master spent in the channel's cipher per result accepted
+    /// (opening results and credits, sealing jobs); 0 without a secret.
+    pub master_cipher_us_per_result: f64,
+    /// Median milliseconds from connecting to `Welcome` for one worker connection.
+    pub handshake_ms: f64,
     /// Whether workers authenticated with a shared secret (`--secret`).
     pub authenticated: bool,
+    /// Whether the connections were encrypted (they are exactly when there is a secret).
+    pub encrypted: bool,
     pub jobs_per_second: f64,
     pub frames: u64,
     pub seconds: f64,
@@ -106,6 +121,10 @@ fn measure(
     config.secret = secret.map(|(_, bytes)| bytes.to_vec());
     let handle = master::start(config, bench_state(), AssetStore::new(), Box::new(CountingSink))
         .context("starting the master")?;
+    let mut joins = (0..HANDSHAKES)
+        .map(|i| join::time_join(handle.local_addr(), secret.map(|(_, s)| s), i))
+        .collect::<anyhow::Result<Vec<f64>>>()?;
+    joins.sort_by(f64::total_cmp);
     let spec = NullWorkers {
         connections,
         pipeline: opts.pipeline,
@@ -135,7 +154,15 @@ fn measure(
             as f64
             / pixels,
         bytes_in_per_pixel: (after.bytes_in - before.bytes_in) as f64 / pixels,
+        bytes_per_result: ((after.bytes_in - before.bytes_in)
+            + (after.bytes_out - before.bytes_out)) as f64
+            / jobs as f64,
+        master_cipher_us_per_result: (after.cipher_ns - before.cipher_ns) as f64
+            / 1e3
+            / jobs as f64,
+        handshake_ms: joins[joins.len() / 2],
         authenticated: opts.secret,
+        encrypted: opts.secret,
         jobs_per_second: jobs as f64 / seconds,
         frames,
         seconds,
@@ -163,6 +190,7 @@ struct Sample {
     jobs: u64,
     bytes_in: u64,
     bytes_out: u64,
+    cipher_ns: u64,
     cpu_us: f64,
 }
 
@@ -175,6 +203,7 @@ impl Sample {
             jobs: Counters::get(&c.results_accepted),
             bytes_in: Counters::get(&c.bytes_in),
             bytes_out: Counters::get(&c.bytes_out),
+            cipher_ns: Counters::get(&c.cipher_ns),
             cpu_us: process_cpu_us(),
         }
     }

@@ -2,7 +2,8 @@
 //! speed is measured here, never asserted.
 //!
 //! - [`trace`]: single-thread throughput of the path-tracing kernel.
-//! - [`master`]: frames per second and CPU per job of the master with null-render workers.
+//! - [`master`]: frames per second and CPU per job of the master with null-render workers
+//!   ([`join`]: one worker connection's join, timed).
 //! - [`lan`]: frames per second and bytes per frame across namespace hosts behind
 //!   rate-limited links, beside the bandwidth bound.
 //! - [`owner_impact`]: a desk owner's CPU-bound program alone and beside a rendering
@@ -11,6 +12,7 @@
 //! - [`reconstruct`]: milliseconds per frame of reconstruction and of the G-buffer.
 
 pub mod busy_loop;
+pub mod join;
 pub mod lan;
 pub mod master;
 pub mod owner_impact;

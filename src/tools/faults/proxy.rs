@@ -3,8 +3,10 @@
 //! Every accepted connection is piped to the upstream address in both directions;
 //! each chunk read is passed through the proxy's current [`LinkMode`], which the test or
 //! the soak changes at any time: delay, drop, truncate, corrupt, stall (the peer sees
-//! an open but silent socket) or cut. It can also capture every byte it forwards, so a
-//! test can prove what never crosses the wire (the shared secret). The proxy runs on
+//! an open but silent socket) or cut. It can also capture every byte it forwards (all
+//! together, and per connection and direction), so a test can prove what never crosses
+//! the wire, and change one chosen byte of the next connection ([`Tamper`]), as an
+//! attacker on the path would. The proxy runs on
 //! its own thread and runtime, so synchronous tests and the soak command drive it alike.
 
 use std::net::SocketAddr;
@@ -67,6 +69,15 @@ pub enum Direction {
     Down,
 }
 
+/// One byte the proxy changes on the next connection it accepts: the byte at offset `at`
+/// of direction `dir` (counted from that connection's first byte) is XORed with `xor`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tamper {
+    pub dir: Direction,
+    pub at: u64,
+    pub xor: u8,
+}
+
 /// Counters of what the proxy did.
 #[derive(Debug, Default)]
 pub struct ProxyStats {
@@ -83,8 +94,18 @@ struct Shared {
     upstream: Mutex<SocketAddr>,
     /// Cancelled by [`Proxy::cut_all`]; replaced by a fresh one for later connections.
     generation: Mutex<CancellationToken>,
-    capture: Mutex<Option<Vec<u8>>>,
+    capture: Mutex<Option<Capture>>,
+    /// For the next connection accepted, then cleared.
+    tamper: Mutex<Option<Tamper>>,
     stats: ProxyStats,
+}
+
+/// What was forwarded while capturing: everything in order, and each connection's two
+/// directions apart (indexed by [`Direction`]: up, down).
+#[derive(Default)]
+struct Capture {
+    all: Vec<u8>,
+    connections: Vec<[Vec<u8>; 2]>,
 }
 
 /// A running proxy; dropping it closes the listening socket and every connection.
@@ -106,6 +127,7 @@ impl Proxy {
             upstream: Mutex::new(upstream),
             generation: Mutex::new(CancellationToken::new()),
             capture: Mutex::new(None),
+            tamper: Mutex::new(None),
             stats: ProxyStats::default(),
         });
         let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
@@ -150,12 +172,23 @@ impl Proxy {
 
     /// Starts keeping a copy of every byte forwarded, both ways (up to [`MAX_CAPTURE`]).
     pub fn start_capture(&self) {
-        *lock(&self.shared.capture) = Some(Vec::new());
+        *lock(&self.shared.capture) = Some(Capture::default());
     }
 
-    /// The bytes captured so far.
+    /// The bytes captured so far, both directions of every connection in order.
     pub fn captured(&self) -> Vec<u8> {
-        lock(&self.shared.capture).clone().unwrap_or_default()
+        lock(&self.shared.capture).as_ref().map(|c| c.all.clone()).unwrap_or_default()
+    }
+
+    /// The bytes captured so far per connection accepted since the capture started:
+    /// `[up, down]` each.
+    pub fn captured_connections(&self) -> Vec<[Vec<u8>; 2]> {
+        lock(&self.shared.capture).as_ref().map(|c| c.connections.clone()).unwrap_or_default()
+    }
+
+    /// Changes one byte of the next connection accepted (see [`Tamper`]).
+    pub fn tamper_next(&self, tamper: Tamper) {
+        *lock(&self.shared.tamper) = Some(tamper);
     }
 
     pub fn stats(&self) -> &ProxyStats {
@@ -192,6 +225,11 @@ async fn accept_loop(listener: TcpListener, shared: Arc<Shared>, stop: Cancellat
             }
         };
         shared.stats.connections.fetch_add(1, Ordering::Relaxed);
+        let tamper = lock(&shared.tamper).take();
+        let index = lock(&shared.capture).as_mut().map(|c| {
+            c.connections.push(Default::default());
+            c.connections.len() - 1
+        });
         let token = lock(&shared.generation).child_token();
         let upstream = *lock(&shared.upstream);
         let shared = shared.clone();
@@ -204,24 +242,33 @@ async fn accept_loop(listener: TcpListener, shared: Arc<Shared>, stop: Cancellat
             let (pr, pw) = peer.into_split();
             let (ur, uw) = up.into_split();
             let conn = token.child_token();
-            let a = tokio::spawn(pipe(pr, uw, Direction::Up, shared.clone(), conn.clone()));
-            let b = tokio::spawn(pipe(ur, pw, Direction::Down, shared, conn.clone()));
+            let up = Pipe { dir: Direction::Up, index, tamper, conn: conn.clone() };
+            let down = Pipe { dir: Direction::Down, index, tamper, conn: conn.clone() };
+            let a = tokio::spawn(pipe(pr, uw, up, shared.clone()));
+            let b = tokio::spawn(pipe(ur, pw, down, shared));
             let _ = tokio::join!(a, b);
         });
     }
 }
 
+/// One direction of one connection.
+struct Pipe {
+    dir: Direction,
+    /// The connection's place in the capture, if capturing.
+    index: Option<usize>,
+    tamper: Option<Tamper>,
+    /// Ends both directions.
+    conn: CancellationToken,
+}
+
 /// Forwards one direction of one connection through the current mode. When it ends,
 /// it ends the other direction too (`conn`), as a real link failure would.
-async fn pipe(
-    mut from: OwnedReadHalf,
-    mut to: OwnedWriteHalf,
-    dir: Direction,
-    shared: Arc<Shared>,
-    conn: CancellationToken,
-) {
+async fn pipe(mut from: OwnedReadHalf, mut to: OwnedWriteHalf, p: Pipe, shared: Arc<Shared>) {
+    let Pipe { dir, index, conn, .. } = p;
+    let tamper = p.tamper.filter(|t| t.dir == dir);
     let mut rng = rand::rngs::StdRng::from_entropy();
     let mut buf = vec![0u8; 64 * 1024];
+    let mut offset = 0u64;
     loop {
         if *lock(&shared.mode) == LinkMode::Stall {
             tokio::select! {
@@ -235,6 +282,10 @@ async fn pipe(
         };
         let mode = *lock(&shared.mode);
         let chunk = &mut buf[..n];
+        if let Some(t) = tamper.filter(|t| (offset..offset + n as u64).contains(&t.at)) {
+            chunk[(t.at - offset) as usize] ^= t.xor;
+        }
+        offset += n as u64;
         let faulted = &shared.stats.chunks_faulted;
         match mode {
             LinkMode::Pass | LinkMode::Stall => {}
@@ -254,7 +305,7 @@ async fn pipe(
             LinkMode::Truncate => {
                 faulted.fetch_add(1, Ordering::Relaxed);
                 let half = n / 2;
-                record(&shared, dir, &chunk[..half]);
+                record(&shared, dir, index, &chunk[..half]);
                 let _ = to.write_all(&chunk[..half]).await;
                 break;
             }
@@ -263,7 +314,7 @@ async fn pipe(
                 break;
             }
         }
-        record(&shared, dir, chunk);
+        record(&shared, dir, index, chunk);
         if to.write_all(chunk).await.is_err() {
             break;
         }
@@ -272,15 +323,19 @@ async fn pipe(
     conn.cancel();
 }
 
-fn record(shared: &Shared, dir: Direction, bytes: &[u8]) {
+fn record(shared: &Shared, dir: Direction, index: Option<usize>, bytes: &[u8]) {
     let counter = match dir {
         Direction::Up => &shared.stats.bytes_up,
         Direction::Down => &shared.stats.bytes_down,
     };
     counter.fetch_add(bytes.len() as u64, Ordering::Relaxed);
     if let Some(cap) = lock(&shared.capture).as_mut() {
-        let room = MAX_CAPTURE.saturating_sub(cap.len());
-        cap.extend_from_slice(&bytes[..bytes.len().min(room)]);
+        let room = MAX_CAPTURE.saturating_sub(cap.all.len());
+        let kept = &bytes[..bytes.len().min(room)];
+        cap.all.extend_from_slice(kept);
+        if let Some(conn) = index.and_then(|i| cap.connections.get_mut(i)) {
+            conn[dir as usize].extend_from_slice(kept);
+        }
     }
 }
 
@@ -356,6 +411,25 @@ mod tests {
         s.write_all(b"0123456789").expect("write");
         let got = read_all(&mut s);
         assert!(got.len() <= 5, "more than half of a truncated chunk came back: {got:?}");
+    }
+
+    #[test]
+    fn tamper_changes_one_chosen_byte_of_the_next_connection_only() {
+        let p = Proxy::start(echo_server()).expect("proxy");
+        p.start_capture();
+        p.tamper_next(Tamper { dir: Direction::Down, at: 5, xor: 0xff });
+        let mut s = client(&p);
+        s.write_all(b"0123456789").expect("write");
+        let mut got = [0u8; 10];
+        s.read_exact(&mut got).expect("echo");
+        assert_eq!(&got, b"01234\xca6789", "byte 5 of the way down");
+        let mut s = client(&p);
+        s.write_all(b"0123456789").expect("write");
+        s.read_exact(&mut got).expect("echo");
+        assert_eq!(&got, b"0123456789", "the next connection is left alone");
+        let conns = p.captured_connections();
+        assert_eq!(conns.len(), 2);
+        assert_eq!(conns[0], [b"0123456789".to_vec(), b"01234\xca6789".to_vec()]);
     }
 
     #[test]

@@ -1,17 +1,18 @@
 //! The master's side of one worker connection as plain logic: worker messages in,
 //! [`Action`]s out (the worker side's twin is `gridlight::worker::link`).
 //!
-//! It holds the protocol's phases (`wire::protocol`): the version check and the HMAC
+//! It holds the protocol's phases (`wire::protocol`): the encrypted channel's handshake
+//! (and no plain `Hello` when a secret is set), the version check and the HMAC
 //! challenge, `Welcome`, serving manifest assets, credits (never more than `k` jobs held
 //! or asked for), each state version sent before the first job naming it, results
-//! checked (integrity tag first, then set range, the job it answers, its state version
+//! checked (integrity tag, or its absence on an encrypted channel, first, then set range, the job it answers, its state version
 //! and pixel count) and the memory of answered jobs that tells a duplicate from a result
 //! never handed out, pausing and resuming, and the silence timeout. It knows no actor,
 //! socket or counter: the connection actor carries out the actions, so every rule here
 //! is unit-tested without actix.
 //!
 //! This file holds the state, the phases and the routing of each message; the rules
-//! live by what they decide: [`handshake`] (`Hello`, `Auth`, `Welcome`), [`assets`]
+//! live by what they decide: [`handshake`] (the channel, `Hello`, `Auth`, `Welcome`), [`assets`]
 //! (serving the manifest) and [`jobs`] (credits, jobs, results, pausing).
 
 mod assets;
@@ -26,6 +27,7 @@ use std::time::{Duration, Instant};
 
 use crate::connection::ConnectionConfig;
 use crate::scene::state::StateVersion;
+use crate::wire::channel::Keys;
 use crate::wire::codec::ProtocolError;
 use crate::wire::integrity::ResultKey;
 use crate::wire::protocol::{ConnId, FrameNo, JobResult, MasterMsg, PauseReason, SetNo, WorkerMsg};
@@ -38,6 +40,9 @@ pub use handshake::MAX_NAME_LEN;
 pub enum Action {
     /// Send this message to the worker.
     Send(MasterMsg),
+    /// The channel's handshake is done: every frame after the ones already sent, both
+    /// ways, is a record under these keys.
+    Encrypt(Keys),
     /// The handshake is done: the worker is live (counted and listed from now on).
     Joined,
     /// Ask the scheduler for this many more jobs.
@@ -95,6 +100,8 @@ pub struct ProtocolState {
     requested: u32,
     /// Why the worker paused; `None` while it takes jobs.
     paused: Option<PauseReason>,
+    /// The channel's handshake succeeded: everything after it is encrypted.
+    encrypted: bool,
     welcomed: bool,
     last_recv: Instant,
     last_sent: Instant,
@@ -114,6 +121,7 @@ impl ProtocolState {
             answered_set: HashSet::new(),
             requested: 0,
             paused: None,
+            encrypted: false,
             welcomed: false,
             last_recv: now,
             last_sent: now,
@@ -169,6 +177,7 @@ impl ProtocolState {
         let kind = match err {
             ProtocolError::EmptyFrame => RejectionKind::EmptyFrame,
             ProtocolError::FrameTooLong { .. } => RejectionKind::OversizedFrame,
+            ProtocolError::Channel(_) => RejectionKind::Decrypt,
             _ => RejectionKind::BadFrame,
         };
         self.reject(Rejection::BadFrame { kind, cause: err.to_string() })
@@ -208,6 +217,9 @@ impl ProtocolState {
     /// Routes a message by phase to the rule that decides it.
     fn dispatch(&mut self, msg: WorkerMsg, out: &mut Vec<Action>) -> Result<(), Rejection> {
         match (&self.phase, msg) {
+            (Phase::Hello, WorkerMsg::Handshake { protocol, noise }) if !self.encrypted => {
+                self.on_channel(protocol, &noise, out)?
+            }
             (Phase::Hello, WorkerMsg::Hello { protocol, name, cores }) => {
                 self.on_hello(protocol, &name, cores, out)?
             }
@@ -268,6 +280,7 @@ fn kind(msg: &WorkerMsg) -> &'static str {
         WorkerMsg::Paused { .. } => "Paused",
         WorkerMsg::Resumed => "Resumed",
         WorkerMsg::Superseded { .. } => "Superseded",
+        WorkerMsg::Handshake { .. } => "Handshake",
     }
 }
 

@@ -7,6 +7,7 @@ use crate::scene::state::{Camera, Resolution, SceneState};
 use crate::scheduler::job_queue::Job;
 use crate::scheduler::sets::SetTable;
 use crate::wire::auth;
+use crate::wire::channel::{initiate, ChannelError, Psk};
 use crate::wire::protocol::PROTOCOL_VERSION;
 use crate::wire::protocol::{PackedRadiance, Partition, SetsConfig};
 use glam::Vec3;
@@ -45,7 +46,7 @@ fn welcomed(now: Instant) -> (ProtocolState, ResultKey) {
     else {
         panic!("no challenge: {out:?}");
     };
-    let key = ResultKey::derive(None, nonce);
+    let key = ResultKey::checksum(nonce);
     let out = s.on_message(WorkerMsg::Auth { mac: None }, now);
     assert_eq!(out[0], Action::Joined);
     assert!(matches!(&out[1], Action::Send(MasterMsg::Welcome { worker_id: 7, .. })));
@@ -86,25 +87,84 @@ fn a_wrong_protocol_version_is_rejected_as_final() {
     assert!(s.on_message(hello(), now).is_empty(), "a closing connection reads nothing");
 }
 
+/// A connection with a secret through the channel's handshake (as a worker with
+/// `worker_secret` starts it): the actions, and the worker's keys when it worked.
+fn channel(
+    s: &mut ProtocolState,
+    worker_secret: &[u8],
+    now: Instant,
+) -> (Vec<Action>, Option<Keys>) {
+    let (init, noise) = initiate(&Psk::derive(worker_secret)).expect("initiate");
+    let out = s.on_message(WorkerMsg::Handshake { protocol: PROTOCOL_VERSION, noise }, now);
+    let keys = match out.first() {
+        Some(Action::Send(MasterMsg::Handshake { noise })) => init.finish(noise).ok(),
+        _ => None,
+    };
+    (out, keys)
+}
+
 #[test]
-fn with_a_secret_a_missing_or_wrong_mac_is_rejected_and_the_right_one_welcomed() {
+fn with_a_secret_only_the_encrypted_channel_under_the_same_secret_is_welcomed() {
     let now = Instant::now();
-    for (mac, want) in [
-        (None, Some(Rejection::NoSecret)),
-        (Some([0u8; 32]), Some(Rejection::WrongSecret)),
-        (Some([1u8; 32]), None),
-    ] {
-        let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
-        let out = s.on_message(hello(), now);
-        let Some(Action::Send(MasterMsg::Challenge { nonce, auth_required: true })) = out.first()
-        else {
-            panic!("no challenge: {out:?}");
-        };
-        let mac = mac.map(|m| if m == [1u8; 32] { auth::mac(SECRET, nonce) } else { m });
-        let out = s.on_message(WorkerMsg::Auth { mac }, now);
-        assert_eq!(rejection(&out), want.as_ref());
-        assert_eq!(s.welcomed(), want.is_none());
-    }
+    // The same secret: the answer, then the keys (both sides name the same handshake);
+    // inside the channel the HMAC challenge is checked as before.
+    let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
+    let (out, keys) = channel(&mut s, SECRET, now);
+    assert_eq!(out.len(), 2, "{out:?}");
+    assert_eq!(Some(&out[1]), keys.map(Action::Encrypt).as_ref(), "the worker's keys differ");
+    let out = s.on_message(hello(), now);
+    let Some(Action::Send(MasterMsg::Challenge { nonce, auth_required: true })) = out.first()
+    else {
+        panic!("no challenge: {out:?}");
+    };
+    let nonce = *nonce;
+    let out = s.on_message(WorkerMsg::Auth { mac: Some(auth::mac(SECRET, &nonce)) }, now);
+    assert!(s.welcomed(), "{out:?}");
+    // Results need no tag of their own: the channel authenticated every byte.
+    s.on_jobs(vec![job(0, 1, 1)], now);
+    let out = s.on_message(answer(&s, &ResultKey::Channel, 0, 1, 1), now);
+    assert!(matches!(out[..], [Action::Answered(_)]), "{out:?}");
+
+    // A wrong secret: refused at its first message, nothing else sent.
+    let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
+    let (out, keys) = channel(&mut s, b"guess", now);
+    assert_eq!(out, [Action::Reject(Rejection::WrongSecret)]);
+    assert!(keys.is_none());
+    // No secret (a plain Hello): refused, as is a wrong MAC inside the channel.
+    let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
+    assert_eq!(s.on_message(hello(), now), [Action::Reject(Rejection::NoSecret)]);
+    let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
+    channel(&mut s, SECRET, now);
+    s.on_message(hello(), now);
+    let out = s.on_message(WorkerMsg::Auth { mac: Some([0; 32]) }, now);
+    assert_eq!(rejection(&out), Some(&Rejection::WrongSecret));
+    // A second handshake on an encrypted connection is out of phase.
+    let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
+    channel(&mut s, SECRET, now);
+    let (out, _) = channel(&mut s, SECRET, now);
+    assert_eq!(rejection(&out).map(Rejection::kind), Some(RejectionKind::Phase));
+}
+
+#[test]
+fn without_a_secret_the_channel_is_refused_and_results_need_their_checksum() {
+    let now = Instant::now();
+    let mut s = ProtocolState::new(1, config(None), now);
+    let (out, keys) = channel(&mut s, SECRET, now);
+    assert_eq!(out, [Action::Reject(Rejection::NotEncrypting)]);
+    assert!(keys.is_none());
+    // A plain connection's result without its checksum is corrupt.
+    let (mut s, _) = welcomed(now);
+    s.on_jobs(vec![job(0, 1, 1)], now);
+    let out = s.on_message(answer(&s, &ResultKey::Channel, 0, 1, 1), now);
+    assert_eq!(rejection(&out).map(Rejection::kind), Some(RejectionKind::Corrupt));
+}
+
+#[test]
+fn a_record_that_fails_authentication_is_rejected_as_decrypt() {
+    let now = Instant::now();
+    let (mut s, _) = welcomed(now);
+    let out = s.on_bad_frame(&ProtocolError::Channel(ChannelError::Decrypt));
+    assert_eq!(rejection(&out).map(Rejection::kind), Some(RejectionKind::Decrypt));
 }
 
 #[test]
