@@ -11,7 +11,8 @@ use anyhow::Context;
 
 use super::GlobalArgs;
 use crate::assets::Assets;
-use crate::render::{testscenes, KernelBuild};
+use crate::render::isa::IsaLevel;
+use crate::render::testscenes;
 use crate::scene::{self, AssetSearchPath};
 use crate::tools::bench::reconstruct::BenchSettings as ReconBench;
 use crate::tools::bench::trace::{bench_scene, TraceReport, TraceSettings};
@@ -91,15 +92,16 @@ pub struct TraceArgs {
     /// of the device, with the adapter's name) instead of one CPU core.
     #[arg(long)]
     pub gpu: bool,
-    /// The CPU kernel build to run (default: the fastest this CPU has). `baseline` is
-    /// what workers without AVX2 run; every build gives the same pixels.
+    /// The instruction-set level whose kernel build runs (default: the fastest this CPU
+    /// has). `baseline` is what workers without AVX2 run; every build gives the same
+    /// pixels.
     #[arg(long, value_enum, conflicts_with = "gpu")]
-    pub build: Option<BuildArg>,
+    pub build: Option<IsaArg>,
 }
 
-/// `--build` of `bench trace`.
+/// `--build` of `bench trace`: an [`IsaLevel`].
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum BuildArg {
+pub enum IsaArg {
     /// x86-64-v4: paths in AVX-512 lanes (CPUs with x86-64-v3 and AVX-512 F, VL, BW, DQ
     /// and CD).
     V4,
@@ -139,25 +141,25 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
 }
 
 fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {
-    let build = match args.build {
-        None => KernelBuild::best(),
-        Some(BuildArg::V4) => KernelBuild::V4,
-        Some(BuildArg::V3) => KernelBuild::V3,
-        Some(BuildArg::Baseline) => KernelBuild::Baseline,
+    let isa = match args.build {
+        None => IsaLevel::best(),
+        Some(IsaArg::V4) => IsaLevel::V4,
+        Some(IsaArg::V3) => IsaLevel::V3,
+        Some(IsaArg::Baseline) => IsaLevel::Baseline,
     };
-    if !build.available() {
+    if !isa.available() {
         anyhow::bail!(
             "bench trace: this CPU cannot run the {} build (v3 needs AVX2, BMI1/2, LZCNT and \
              FMA; v4 also AVX-512 F, VL, BW, DQ and CD); the fastest it runs is {}",
-            build.name(),
-            KernelBuild::best().name()
+            isa.name(),
+            IsaLevel::best().name()
         );
     }
     let settings = TraceSettings {
         spp: args.spp,
         max_depth: args.max_depth,
         runs: args.runs,
-        build,
+        isa,
         ..TraceSettings::default()
     };
     if args.gpu {

@@ -19,6 +19,7 @@ pub mod envmap;
 mod glossy_lanes;
 pub mod gpu;
 pub mod integrator;
+pub mod isa;
 pub mod lanes;
 pub mod lights;
 pub mod microfacet;
@@ -42,7 +43,7 @@ use lights::{AreaLight, Lights};
 
 pub use integrator::{
     area_emission, escaped_emission, pick, primary_hit, primary_hits, render_pixels,
-    render_pixels_counted, render_pixels_in, KernelBuild, RenderStats, Strategy,
+    render_pixels_counted, render_pixels_in, RenderStats, Strategy,
 };
 
 /// Why a scene state cannot be rendered with the given assets.

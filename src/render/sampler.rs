@@ -9,7 +9,8 @@
 //! Independent draws ("padding") give an unbounded number of dimensions while each
 //! 4-D group keeps its low discrepancy.
 
-use super::lanes::{F32s, Isa, Level, U32s};
+use super::isa::IsaLevel;
+use super::lanes::{F32s, Isa, U32s};
 
 /// Number of bits in a Sobol direction vector.
 const BITS: usize = 32;
@@ -235,7 +236,7 @@ pub(crate) fn next4_lanes<I: Isa>(
     }
     #[inline(always)]
     fn sobol<I: Isa>(i: U32s<I>, dim: usize) -> U32s<I> {
-        if I::LEVEL == Level::Avx512 {
+        if I::LEVEL == IsaLevel::V4 {
             let mut x = U32s::splat(0);
             for (n, table) in NIBBLES[dim].iter().enumerate() {
                 x = x ^ U32s::lookup16(table, (i >> (4 * n as u32)) & U32s::splat(15));

@@ -34,7 +34,7 @@ mod wide;
 pub use blas::{validate_mesh, Blas, MeshError};
 pub use tlas::{Hit, Instance, Tlas, FLAT_MAX_TRIANGLES};
 pub use triangle::{LeafTri, TriEdges};
-pub use wide::{Avx, Avx512, LaneFill, Lanes, Sse};
+pub use wide::LaneFill;
 
 #[cfg(test)]
 mod tests {
@@ -114,7 +114,8 @@ mod tests {
             let (mut hits, mut blocked) = (0, 0);
             for _ in 0..1500 {
                 let (a, b) = (ray(&mut rng), ray(&mut rng));
-                let both = tlas.intersect_and_occluded_with(Sse, a, b);
+                let both =
+                    tlas.intersect_and_occluded_with(crate::render::isa::Cpu::BASELINE, a, b);
                 let alone = (tlas.intersect(a.0, a.1, a.2), tlas.occluded(b.0, b.1, b.2));
                 assert_eq!(both, alone);
                 hits += usize::from(alone.0.is_some());

@@ -15,7 +15,8 @@ use obvhs::BvhBuildParams;
 use super::blas::{build_tri_bvh, Blas};
 use super::traverse::{intersect_node, restart};
 use super::triangle::TriEdges;
-use super::wide::{LaneFill, Lanes, Sse, TriHit, WideBvh, WideRay};
+use super::wide::{LaneFill, TriHit, WideBvh, WideRay};
+use crate::render::isa::{Cpu, Isa};
 
 /// One placed instance of a BLAS.
 #[derive(Clone)]
@@ -232,27 +233,27 @@ impl Tlas {
     /// Closest hit along `origin + t * dir` for t in (0, tmax).
     #[inline(always)]
     pub fn intersect(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        self.intersect_with(Sse, origin, dir, tmax)
+        self.intersect_with(Cpu::BASELINE, origin, dir, tmax)
     }
 
     /// Whether anything blocks `origin + t * dir` for t in (0, tmax).
     #[inline(always)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        self.occluded_with(Sse, origin, dir, tmax)
+        self.occluded_with(Cpu::BASELINE, origin, dir, tmax)
     }
 
-    /// [`Tlas::intersect`] with node tests on `L`'s registers (same hits).
+    /// [`Tlas::intersect`] with node tests on `I`'s registers (same hits).
     #[inline(always)]
-    pub fn intersect_with<L: Lanes>(
+    pub fn intersect_with<I: Isa>(
         &self,
-        _lanes: L,
+        _cpu: Cpu<I>,
         origin: Vec3,
         dir: Vec3,
         tmax: f32,
     ) -> Option<Hit> {
         let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        if let Some(h) = self.flat.wide.intersect::<L>(&WideRay::new(origin, dir), tmax) {
+        if let Some(h) = self.flat.wide.intersect::<I>(&WideRay::new(origin, dir), tmax) {
             best = self.flat_hit(h);
         }
         if self.large.is_empty() {
@@ -260,7 +261,7 @@ impl Tlas {
         }
         if let [only] = self.large[..] {
             // One large instance: its BLAS root bounds it already.
-            self.instance_hit::<L>(only, origin, dir, &mut best);
+            self.instance_hit::<I>(only, origin, dir, &mut best);
         } else {
             let mut world = Ray::new(origin, dir, 0.0, best.t);
             let mut state = Traversal::default();
@@ -273,7 +274,7 @@ impl Tlas {
                 intersect_node(node, &world, state.oct_inv4),
                 {
                     let index = self.large[state.primitive_id as usize];
-                    self.instance_hit::<L>(index, origin, dir, &mut best);
+                    self.instance_hit::<I>(index, origin, dir, &mut best);
                     world.tmax = best.t;
                 }
             );
@@ -286,20 +287,20 @@ impl Tlas {
     /// at most one large instance (see `WideBvh::intersect_and_occluded`); the same
     /// answers as the two calls.
     #[inline(always)]
-    pub fn intersect_and_occluded_with<L: Lanes>(
+    pub fn intersect_and_occluded_with<I: Isa>(
         &self,
-        lanes: L,
+        cpu: Cpu<I>,
         closest: (Vec3, Vec3, f32),
         shadow: (Vec3, Vec3, f32),
     ) -> (Option<Hit>, bool) {
         if self.large.len() > 1 {
-            let hit = self.intersect_with(lanes, closest.0, closest.1, closest.2);
-            return (hit, self.occluded_with(lanes, shadow.0, shadow.1, shadow.2));
+            let hit = self.intersect_with(cpu, closest.0, closest.1, closest.2);
+            return (hit, self.occluded_with(cpu, shadow.0, shadow.1, shadow.2));
         }
         let (o, d) = (Vec3A::from(closest.0), Vec3A::from(closest.1));
         let (so, sd) = (Vec3A::from(shadow.0), Vec3A::from(shadow.1));
         let mut best = Hit { t: closest.2, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
-        let (h, mut blocked) = self.flat.wide.intersect_and_occluded::<L>(
+        let (h, mut blocked) = self.flat.wide.intersect_and_occluded::<I>(
             (&WideRay::new(o, d), closest.2),
             (&WideRay::new(so, sd), shadow.2),
         );
@@ -308,10 +309,10 @@ impl Tlas {
         }
         if let [only] = self.large[..] {
             if blocked {
-                self.instance_hit::<L>(only, o, d, &mut best);
+                self.instance_hit::<I>(only, o, d, &mut best);
             } else {
                 let inst = &self.instances[only as usize];
-                let (h, b) = inst.blas.wide.intersect_and_occluded::<L>(
+                let (h, b) = inst.blas.wide.intersect_and_occluded::<I>(
                     (&inst.object_ray(o, d), best.t),
                     (&inst.object_ray(so, sd), shadow.2),
                 );
@@ -334,32 +335,32 @@ impl Tlas {
     /// Closest hit in instance `index`'s BLAS nearer than `best` (a method, not a closure,
     /// so that `inline(always)` carries the AVX node test into the dispatched kernel).
     #[inline(always)]
-    fn instance_hit<L: Lanes>(&self, index: u32, origin: Vec3A, dir: Vec3A, best: &mut Hit) {
+    fn instance_hit<I: Isa>(&self, index: u32, origin: Vec3A, dir: Vec3A, best: &mut Hit) {
         let inst = &self.instances[index as usize];
-        if let Some(h) = inst.blas.wide.intersect::<L>(&inst.object_ray(origin, dir), best.t) {
+        if let Some(h) = inst.blas.wide.intersect::<I>(&inst.object_ray(origin, dir), best.t) {
             *best = Hit { t: h.t, instance: index, prim: h.prim, u: h.u, v: h.v };
         }
     }
 
     /// Whether instance `index`'s BLAS blocks the ray before `tmax`.
     #[inline(always)]
-    fn instance_blocks<L: Lanes>(&self, index: u32, origin: Vec3A, dir: Vec3A, tmax: f32) -> bool {
+    fn instance_blocks<I: Isa>(&self, index: u32, origin: Vec3A, dir: Vec3A, tmax: f32) -> bool {
         let inst = &self.instances[index as usize];
-        inst.blas.wide.occluded::<L>(&inst.object_ray(origin, dir), tmax)
+        inst.blas.wide.occluded::<I>(&inst.object_ray(origin, dir), tmax)
     }
 
-    /// [`Tlas::occluded`] with node tests on `L`'s registers (same answers).
+    /// [`Tlas::occluded`] with node tests on `I`'s registers (same answers).
     #[inline(always)]
-    pub fn occluded_with<L: Lanes>(&self, _lanes: L, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+    pub fn occluded_with<I: Isa>(&self, _cpu: Cpu<I>, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        if self.flat.wide.occluded::<L>(&WideRay::new(origin, dir), tmax) {
+        if self.flat.wide.occluded::<I>(&WideRay::new(origin, dir), tmax) {
             return true;
         }
         if self.large.is_empty() {
             return false;
         }
         if let [only] = self.large[..] {
-            return self.instance_blocks::<L>(only, origin, dir, tmax);
+            return self.instance_blocks::<I>(only, origin, dir, tmax);
         }
         let world = Ray::new(origin, dir, 0.0, tmax);
         let mut state = Traversal::default();
@@ -367,7 +368,7 @@ impl Tlas {
         let mut node;
         obvhs::traverse!(self.bvh, node, state, intersect_node(node, &world, state.oct_inv4), {
             let index = self.large[state.primitive_id as usize];
-            if self.instance_blocks::<L>(index, origin, dir, tmax) {
+            if self.instance_blocks::<I>(index, origin, dir, tmax) {
                 return true;
             }
         });

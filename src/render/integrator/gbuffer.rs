@@ -5,31 +5,31 @@ use glam::{Vec2, Vec3};
 
 use super::path::{albedo_of, closest, Hit};
 use super::MIN_ALBEDO;
-use crate::render::accel::{Lanes, Sse};
+use crate::render::isa::{Cpu, Isa};
 use crate::render::{PixelSample, RenderScene};
 
 /// G-buffer sample through the pixel centre (reflected radiance zero).
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
-    primary_hit_with(Sse, scene, pixel)
+    primary_hit_with(Cpu::BASELINE, scene, pixel)
 }
 
 #[inline(always)]
-pub(super) fn primary_hits_with<L: Lanes>(
-    lanes: L,
+pub(super) fn primary_hits_with<I: Isa>(
+    cpu: Cpu<I>,
     scene: &RenderScene,
     first: u32,
     out: &mut [PixelSample],
 ) {
     for (pixel, s) in (first..).zip(out.iter_mut()) {
-        *s = primary_hit_with(lanes, scene, pixel);
+        *s = primary_hit_with(cpu, scene, pixel);
     }
 }
 
 #[inline(always)]
-fn primary_hit_with<L: Lanes>(lanes: L, scene: &RenderScene, pixel: u32) -> PixelSample {
+fn primary_hit_with<I: Isa>(cpu: Cpu<I>, scene: &RenderScene, pixel: u32) -> PixelSample {
     let (o, d) = primary_ray(scene, pixel);
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
-    let hit = closest(lanes, scene, o, d);
+    let hit = closest(cpu, scene, o, d);
     out.emission = seen_emission(scene, &hit, d);
     match hit {
         None => {}
@@ -64,7 +64,7 @@ pub fn area_emission(scene: &RenderScene, pixel: u32, count: u32) -> Vec3 {
         let x = (i as f32 + 0.5) / count as f32;
         let y = (i.reverse_bits() as f64 / 4_294_967_296.0) as f32 + 0.5 / count as f32;
         let (o, d) = scene.camera.ray(corner + Vec2::new(x, y.min(0.999_999)), Vec2::splat(0.5));
-        sum += seen_emission(scene, &closest(Sse, scene, o, d), d);
+        sum += seen_emission(scene, &closest(Cpu::BASELINE, scene, o, d), d);
     }
     sum / count as f32
 }
@@ -102,7 +102,7 @@ pub fn escaped_emission(scene: &RenderScene, pixel: u32) -> Vec3 {
 /// Picking for the window: the object hit by the ray through (x, y) in pixels.
 pub fn pick(scene: &RenderScene, x: f32, y: f32) -> Option<u32> {
     let (o, d) = scene.camera.ray(Vec2::new(x, y), Vec2::splat(0.5));
-    match closest(Sse, scene, o, d)? {
+    match closest(Cpu::BASELINE, scene, o, d)? {
         Hit::Surface(s) => Some(s.object),
         Hit::Light(..) => None,
     }

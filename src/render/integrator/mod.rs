@@ -12,6 +12,7 @@
 //! directly seen emission and picking, `reference.rs` (tests only) the one-path kernel
 //! the stream kernel is checked against.
 
+use super::isa::IsaLevel;
 use super::{PixelSample, RenderScene};
 
 mod builds;
@@ -21,8 +22,8 @@ mod path;
 #[cfg(test)]
 mod reference;
 
-pub use builds::{primary_hits, render_pixels_in, KernelBuild};
-#[cfg(all(test, target_arch = "x86_64"))]
+pub use builds::{primary_hits, render_pixels_in};
+#[cfg(target_arch = "x86_64")]
 pub(crate) use builds::{v3, v4};
 pub use gbuffer::{area_emission, escaped_emission, pick, primary_hit};
 pub(super) use nee::ShadowRay;
@@ -85,7 +86,7 @@ pub fn render_pixels(scene: &RenderScene, frame: u64, pixels: &[u32], out: &mut 
 
 /// [`render_pixels`] with a choice of light-gathering strategy, also returning
 /// how much work it did (for benchmarks and validation), in the best build this CPU
-/// runs ([`KernelBuild::best`]).
+/// runs ([`IsaLevel::best`]).
 pub fn render_pixels_counted(
     scene: &RenderScene,
     frame: u64,
@@ -93,5 +94,5 @@ pub fn render_pixels_counted(
     out: &mut Vec<PixelSample>,
     strategy: Strategy,
 ) -> RenderStats {
-    render_pixels_in(KernelBuild::best(), scene, frame, pixels, out, strategy)
+    render_pixels_in(IsaLevel::best(), scene, frame, pixels, out, strategy)
 }

@@ -4,8 +4,8 @@
 use glam::Vec3;
 
 use super::path::{mis, offset};
-use crate::render::accel::Lanes;
 use crate::render::bsdf::Bsdf;
+use crate::render::isa::{Cpu, Isa};
 use crate::render::microfacet::Frame;
 use crate::render::RenderScene;
 
@@ -22,13 +22,13 @@ impl ShadowRay {
     /// Traces this shadow ray alone (its path has no next ray to go with): adds its
     /// contribution to `indirect` unless blocked.
     #[inline(always)]
-    pub(in crate::render) fn settle<L: Lanes>(
+    pub(in crate::render) fn settle<I: Isa>(
         &self,
-        lanes: L,
+        cpu: Cpu<I>,
         scene: &RenderScene,
         indirect: &mut Vec3,
     ) {
-        if !scene.tlas.occluded_with(lanes, self.origin, self.dir, self.tmax) {
+        if !scene.tlas.occluded_with(cpu, self.origin, self.dir, self.tmax) {
             *indirect += self.contribution;
         }
     }

@@ -6,8 +6,8 @@ use glam::{Vec2, Vec3};
 
 use super::nee::{next_event, ShadowRay};
 use super::{MIN_ALBEDO, RR_START_DEPTH};
-use crate::render::accel::Lanes;
 use crate::render::bsdf::Bsdf;
+use crate::render::isa::{Cpu, Isa};
 use crate::render::lights::AreaLight;
 use crate::render::microfacet::Frame;
 use crate::render::sampler::SampleStream;
@@ -33,13 +33,13 @@ pub(in crate::render) struct Surface<'a> {
 }
 
 #[inline(always)]
-pub(super) fn closest<'a, L: Lanes>(
-    lanes: L,
+pub(super) fn closest<'a, I: Isa>(
+    cpu: Cpu<I>,
     scene: &'a RenderScene,
     o: Vec3,
     d: Vec3,
 ) -> Option<Hit<'a>> {
-    resolve(scene, o, d, scene.tlas.intersect_with(lanes, o, d, f32::INFINITY))
+    resolve(scene, o, d, scene.tlas.intersect_with(cpu, o, d, f32::INFINITY))
 }
 
 /// What the ray `o + t d` reaches given the geometry's closest `hit`: an area light in
@@ -169,16 +169,16 @@ pub(in crate::render) const EMPTY_SAMPLE: PixelSample = PixelSample {
 /// The closest hit of the ray `(o, d)`; a pending `shadow` ray is traced together with it
 /// (the two walks in turns) and its contribution added to `indirect` unless blocked.
 #[inline(always)]
-pub(in crate::render) fn trace<L: Lanes>(
-    lanes: L,
+pub(in crate::render) fn trace<I: Isa>(
+    cpu: Cpu<I>,
     scene: &RenderScene,
     (o, d): (Vec3, Vec3),
     shadow: Option<ShadowRay>,
     indirect: &mut Vec3,
 ) -> Option<crate::render::accel::Hit> {
-    let Some(s) = shadow else { return scene.tlas.intersect_with(lanes, o, d, f32::INFINITY) };
+    let Some(s) = shadow else { return scene.tlas.intersect_with(cpu, o, d, f32::INFINITY) };
     let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
-        lanes,
+        cpu,
         (o, d, f32::INFINITY),
         (s.origin, s.dir, s.tmax),
     );

@@ -5,14 +5,14 @@ use glam::{Vec2, Vec3};
 
 use super::path::{arrive, scatter, trace, PathState, EMPTY_SAMPLE};
 use super::ShadowRay;
-use super::{primary_hit, primary_hits, render_pixels_in, KernelBuild, RenderStats, Strategy};
-use crate::render::accel::{Lanes, Sse};
+use super::{primary_hit, primary_hits, render_pixels_in, RenderStats, Strategy};
+use crate::render::isa::{Cpu, Isa, IsaLevel};
 use crate::render::sampler::SampleStream;
 use crate::render::{PixelSample, RenderScene};
 
 /// One camera path: its reflected radiance and G-buffer values (the one-path kernel).
-fn trace_path<L: Lanes>(
-    lanes: L,
+fn trace_path<I: Isa>(
+    cpu: Cpu<I>,
     scene: &RenderScene,
     stream: SampleStream,
     pixel_pos: Vec2,
@@ -28,7 +28,7 @@ fn trace_path<L: Lanes>(
     let mut shadow: Option<ShadowRay> = None;
     loop {
         *rays += 1;
-        let hit = trace(lanes, scene, (o, d), shadow.take(), &mut path.indirect);
+        let hit = trace(cpu, scene, (o, d), shadow.take(), &mut path.indirect);
         let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, nee, &mut out);
         let Some((surface, albedo)) = arrived else { break };
         let (alive, s) = scatter(scene, &mut path, (&mut o, &mut d), &surface, albedo, nee, rays);
@@ -38,7 +38,7 @@ fn trace_path<L: Lanes>(
         }
     }
     if let Some(s) = shadow {
-        s.settle(lanes, scene, &mut path.indirect);
+        s.settle(cpu, scene, &mut path.indirect);
     }
     out.reflected = path.indirect;
     out
@@ -73,7 +73,7 @@ pub(crate) fn render_pixels_one_path(
         for index in 0..spp {
             let stream = SampleStream::new(state.seed, frame, pixel, index);
             let s = trace_path(
-                Sse,
+                Cpu::BASELINE,
                 scene,
                 stream,
                 pos,
@@ -110,7 +110,7 @@ mod tests {
     fn every_kernel_build_matches_the_one_path_reference_bit_for_bit() {
         let test = "every_kernel_build_matches_the_one_path_reference_bit_for_bit";
         let (builds, missing): (Vec<_>, Vec<_>) =
-            KernelBuild::ALL.into_iter().partition(|b| b.available());
+            IsaLevel::ALL.into_iter().partition(|b| b.available());
         for build in missing {
             let why = format!("the CPU lacks {}, so that build was not checked", build.name());
             crate::testing::skip(test, crate::testing::Missing::CpuFeature, &why);

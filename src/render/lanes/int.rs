@@ -4,9 +4,11 @@
 use std::marker::PhantomData;
 use std::ops::{BitAnd, BitOr, BitXor, Not, Shl, Shr};
 
+#[cfg(target_arch = "x86_64")]
+use super::reg;
 use super::{each, F32s, Isa, Mask, U32s, WIDTH};
 #[cfg(target_arch = "x86_64")]
-use super::{reg, Level};
+use crate::render::isa::IsaLevel;
 
 lanewise!(U32s, u, BitAnd, bitand, &, _mm_and_si128, _mm256_and_si256, _mm512_and_si512);
 lanewise!(U32s, u, BitOr, bitor, |, _mm_or_si128, _mm256_or_si256, _mm512_or_si512);
@@ -140,7 +142,7 @@ impl<I: Isa> U32s<I> {
     #[inline(always)]
     pub fn reverse_bits(self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        if I::LEVEL != Level::Sse2 {
+        if I::LEVEL != IsaLevel::Baseline {
             return U32s::new(regs!(I, u -> u, self.0, self.0, |x, _y|
             sse: x, // never taken: SSE2 lanes take the shifts below
             avx: {
@@ -177,7 +179,7 @@ impl<I: Isa> U32s<I> {
     #[inline(always)]
     pub fn gather(table: &[u32; 256], index: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        if I::LEVEL != Level::Sse2 {
+        if I::LEVEL != IsaLevel::Baseline {
             let t = table.as_ptr() as *const i32;
             return U32s::new(regs!(I, u -> u, index.0, index.0, |i, _y|
                 sse: i, // never taken: SSE2 lanes take the loop below
@@ -197,7 +199,7 @@ impl<I: Isa> U32s<I> {
     #[inline(always)]
     pub fn lookup16(table: &[u32; 16], index: Self) -> Self {
         #[cfg(target_arch = "x86_64")]
-        if I::LEVEL != Level::Sse2 {
+        if I::LEVEL != IsaLevel::Baseline {
             let t = table.as_ptr() as *const std::arch::x86_64::__m256i;
             return U32s::new(regs!(I, u -> u, index.0, index.0, |i, _y|
                 sse: i, // never taken: SSE2 lanes take the loop below
@@ -240,14 +242,14 @@ impl<I: Isa> U32s<I> {
     pub fn bitmask(self) -> u32 {
         #[cfg(target_arch = "x86_64")]
         return match I::LEVEL {
-            Level::Avx512 => simd!(_mm512_movepi32_mask(reg::u1(self.0))) as u32,
-            Level::Avx2 => simd!({
+            IsaLevel::V4 => simd!(_mm512_movepi32_mask(reg::u1(self.0))) as u32,
+            IsaLevel::V3 => simd!({
                 let h = reg::u2(self.0);
                 let lo = _mm256_movemask_ps(_mm256_castsi256_ps(h[0])) as u32;
                 let hi = _mm256_movemask_ps(_mm256_castsi256_ps(h[1])) as u32;
                 lo | (hi << 8)
             }),
-            Level::Sse2 => simd!({
+            IsaLevel::Baseline => simd!({
                 let q = reg::u4(self.0);
                 let m0 = _mm_movemask_ps(_mm_castsi128_ps(q[0])) as u32;
                 let m1 = _mm_movemask_ps(_mm_castsi128_ps(q[1])) as u32;

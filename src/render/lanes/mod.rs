@@ -3,15 +3,15 @@
 //! instructions.
 //!
 //! The lane types carry the instruction set they compile to as a type parameter
-//! ([`Isa`]): [`Avx512`] makes every operator one AVX-512 instruction on a 512-bit
-//! register, [`Avx2`] two AVX/AVX2 instructions on 256-bit halves, [`Sse2`] four SSE2
-//! instructions on 128-bit quarters (baseline x86-64, so every x86-64 CPU runs it); off
-//! x86-64 all are loops over sixteen elements. A parameter, not a compile-time target
-//! feature, because one binary holds every build and picks one at run time
-//! ([`super::integrator::render_pixels_counted`]): `F32s<Avx512>` may only be used by code
-//! inlined into the x86-64-v4 build and `F32s<Avx2>` by code of the v3 build, whose
-//! features make their intrinsics inline there (the stream kernel names its lanes
-//! through [`super::accel::Lanes::Simd`], which only those builds' tokens map to them).
+//! ([`Isa`]): [`V4`](super::isa::V4) makes every operator one AVX-512 instruction on a
+//! 512-bit register, [`V3`](super::isa::V3) two AVX/AVX2 instructions on 256-bit halves,
+//! [`Baseline`](super::isa::Baseline) four SSE2 instructions on 128-bit quarters (so every
+//! x86-64 CPU runs it); off x86-64 all are loops over sixteen elements. A parameter, not a
+//! compile-time target feature, because one binary holds every build and picks one at run
+//! time ([`super::integrator::render_pixels_counted`]): `F32s<V4>` may only be used by
+//! code inlined into the x86-64-v4 build and `F32s<V3>` by code of the v3 build, whose
+//! features make their intrinsics inline there (the kernel reaches them only through a
+//! [`super::isa::Cpu`] of that level).
 //!
 //! Each operator is one IEEE operation per lane, never fused (Rust does not contract
 //! `mul` and `add` into FMA), so a lane's value is exactly what the scalar code computes
@@ -42,51 +42,12 @@
 //! `vec3.rs` three-component vectors of lanes, `tests.rs` the per-instruction-set checks
 //! that every operator gives the scalar bits.
 
-use std::fmt::Debug;
 use std::marker::PhantomData;
+
+pub use super::isa::Isa;
 
 /// Lanes per group.
 pub const WIDTH: usize = 16;
-
-/// The register width a lane type's operators compile to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Level {
-    /// Four 128-bit SSE2 quarters (baseline x86-64).
-    Sse2,
-    /// Two 256-bit AVX/AVX2 halves (x86-64-v3).
-    Avx2,
-    /// One 512-bit AVX-512 register (x86-64-v4).
-    Avx512,
-}
-
-/// The instructions a lane type's operators compile to.
-pub trait Isa: Copy + Default + Debug + PartialEq + Eq {
-    const LEVEL: Level;
-}
-
-/// Two AVX/AVX2 registers per lane group: only in code of the x86-64-v3 build.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Avx2;
-
-impl Isa for Avx2 {
-    const LEVEL: Level = Level::Avx2;
-}
-
-/// One AVX-512 register per lane group: only in code of the x86-64-v4 build.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Avx512;
-
-impl Isa for Avx512 {
-    const LEVEL: Level = Level::Avx512;
-}
-
-/// Four SSE2 quarters per lane group: every x86-64 CPU.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Sse2;
-
-impl Isa for Sse2 {
-    const LEVEL: Level = Level::Sse2;
-}
 
 /// Sixteen `f32` lanes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -103,8 +64,8 @@ pub type Mask<I> = U32s<I>;
 
 /// Runs SIMD intrinsics on the lanes as registers.
 ///
-/// SAFETY (of every use): the AVX-512 side runs only for `Avx512` lanes and the AVX/AVX2
-/// side only for `Avx2` lanes, which only code inlined into the x86-64-v4 and -v3 builds
+/// SAFETY (of every use): the AVX-512 side runs only for `V4` lanes and the AVX/AVX2
+/// side only for `V3` lanes, which only code inlined into the x86-64-v4 and -v3 builds
 /// uses, and those builds run only where the CPU has their features; SSE2 is part of
 /// baseline x86-64.
 #[cfg(target_arch = "x86_64")]
@@ -153,7 +114,7 @@ mod reg {
 
 /// One operation on the registers of two lane arrays (`$a`, `$b`) of kind `f` or `u`,
 /// giving lanes of kind `f` or `u`: `$avx512` on the one AVX-512 register, `$avx` on
-/// each AVX half, `$sse` on each SSE quarter, by the lanes' [`Level`] (a constant, so
+/// each AVX half, `$sse` on each SSE quarter, by the lanes' [`IsaLevel`](super::isa::IsaLevel) (a constant, so
 /// only one arm is compiled into a build). Written out per register, not as a closure,
 /// so that it is never compiled out of line.
 #[cfg(target_arch = "x86_64")]
@@ -161,18 +122,18 @@ macro_rules! regs {
     ($I:ty, $in:ident -> $out:ident, $a:expr, $b:expr,
      |$x:ident, $y:ident| sse: $sse:expr, avx: $avx:expr, avx512: $avx512:expr) => {{
         let (a, b) = ($a, $b);
-        match <$I as $crate::render::lanes::Isa>::LEVEL {
-            $crate::render::lanes::Level::Avx512 => {
+        match <$I as $crate::render::isa::Isa>::LEVEL {
+            $crate::render::isa::IsaLevel::V4 => {
                 let ($x, $y) = (regs!(@in1 $in, a), regs!(@in1 $in, b));
                 regs!(@out1 $out, simd!($avx512))
             }
-            $crate::render::lanes::Level::Avx2 => {
+            $crate::render::isa::IsaLevel::V3 => {
                 let (a, b) = (regs!(@in2 $in, a), regs!(@in2 $in, b));
                 let r0 = { let ($x, $y) = (a[0], b[0]); simd!($avx) };
                 let r1 = { let ($x, $y) = (a[1], b[1]); simd!($avx) };
                 regs!(@out2 $out, [r0, r1])
             }
-            $crate::render::lanes::Level::Sse2 => {
+            $crate::render::isa::IsaLevel::Baseline => {
                 let (a, b) = (regs!(@in4 $in, a), regs!(@in4 $in, b));
                 let r0 = { let ($x, $y) = (a[0], b[0]); simd!($sse) };
                 let r1 = { let ($x, $y) = (a[1], b[1]); simd!($sse) };

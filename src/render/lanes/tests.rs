@@ -1,48 +1,40 @@
 //! Every lane operator against the scalar code's bits, in each instruction set.
 
 use super::*;
+use crate::render::isa::IsaLevel;
 
 /// Whether this CPU runs lane types of `level`, reporting a skip where not.
-pub(crate) fn runnable(level: Level, test: &str) -> bool {
-    let (runs, why) = match level {
-        Level::Sse2 => return true,
-        Level::Avx2 => (
-            crate::render::integrator::v3::available(),
-            "the CPU lacks x86-64-v3, so the AVX2 lanes were not checked",
-        ),
-        Level::Avx512 => (
-            crate::render::integrator::v4::available(),
-            "the CPU lacks x86-64-v4, so the AVX-512 lanes were not checked",
-        ),
-    };
-    if !runs {
+pub(crate) fn runnable(level: IsaLevel, test: &str) -> bool {
+    if !level.available() {
+        let why = format!("the CPU lacks {}, so its lanes were not checked", level.name());
         crate::testing::skip(test, crate::testing::Missing::CpuFeature, why);
+        return false;
     }
-    runs
+    true
 }
 
-/// Three tests running the generic check `$check` on the SSE2, AVX2 and AVX-512 lane
-/// types (the last two skipped where this CPU lacks their build's features).
+/// Three tests running the generic check `$check` on the baseline, v3 and v4 lane types
+/// (the last two skipped where this CPU lacks their build's features).
 macro_rules! isa_tests {
-    ($check:ident: $sse2:ident, $avx2:ident, $avx512:ident) => {
+    ($check:ident: $baseline:ident, $v3:ident, $v4:ident) => {
         #[test]
-        fn $sse2() {
-            $check::<$crate::render::lanes::Sse2>();
+        fn $baseline() {
+            $check::<$crate::render::isa::Baseline>();
         }
 
         #[test]
-        fn $avx2() {
-            use $crate::render::lanes::{tests::runnable, Avx2, Level};
-            if runnable(Level::Avx2, stringify!($avx2)) {
-                $check::<Avx2>();
+        fn $v3() {
+            use $crate::render::isa::{IsaLevel, V3};
+            if $crate::render::lanes::tests::runnable(IsaLevel::V3, stringify!($v3)) {
+                $check::<V3>();
             }
         }
 
         #[test]
-        fn $avx512() {
-            use $crate::render::lanes::{tests::runnable, Avx512, Level};
-            if runnable(Level::Avx512, stringify!($avx512)) {
-                $check::<Avx512>();
+        fn $v4() {
+            use $crate::render::isa::{IsaLevel, V4};
+            if $crate::render::lanes::tests::runnable(IsaLevel::V4, stringify!($v4)) {
+                $check::<V4>();
             }
         }
     };

@@ -46,8 +46,8 @@
 //! An earlier version kept each lane's state as a scalar struct and gathered it into
 //! vectors per stage: the gathers cost what the vector stage saved (parity on the Cornell
 //! box). Here the state stays in lanes, and the lane types are registers of the build's
-//! instruction set ([`super::lanes`]): the kernel is generic over the build's
-//! [`Lanes`] token, whose `Simd` type names them.
+//! instruction set ([`super::lanes`]): the kernel is generic over the build's [`Isa`],
+//! and takes the [`Cpu`] that proves this CPU runs it.
 //!
 //! Sixteen lanes rather than eight since the x86-64-v4 build (one AVX-512 register;
 //! [`super::lanes`] says why every build has the same width): on an AMD EPYC Zen 4,
@@ -71,10 +71,10 @@
 use glam::Vec3;
 use gridlight_actors::state::MaterialKind;
 
-use super::accel::Lanes;
 use super::bsdf::Bsdf;
 use super::integrator::{arrive, scatter, trace, RenderStats, Strategy, Surface, EMPTY_SAMPLE};
-use super::lanes::{F32s, Isa, WIDTH};
+use super::isa::{Cpu, Isa};
+use super::lanes::{F32s, WIDTH};
 use super::sampler::SampleStream;
 use super::{MaterialData, PixelSample, RenderScene};
 
@@ -92,8 +92,8 @@ const CHUNK: usize = 256;
 
 /// Path-traces `pixels` as [`super::integrator::render_pixels_counted`] specifies.
 #[inline(always)]
-pub(super) fn render<L: Lanes>(
-    lanes: L,
+pub(super) fn render<I: Isa>(
+    cpu: Cpu<I>,
     scene: &RenderScene,
     frame: u64,
     pixels: &[u32],
@@ -113,7 +113,7 @@ pub(super) fn render<L: Lanes>(
     let mut stats = RenderStats::default();
     // (reflected, emission) of each sample of the chunk, by (pixel, sample index).
     let mut sums = Vec::with_capacity(CHUNK * spp);
-    let mut g = Group::<L::Simd>::default();
+    let mut g = Group::<I>::default();
     for (c, chunk) in pixels.chunks(CHUNK).enumerate() {
         let gbuffer = &mut out[c * CHUNK..c * CHUNK + chunk.len()];
         sums.clear();
@@ -158,7 +158,7 @@ pub(super) fn render<L: Lanes>(
                     let l = trace_lanes.trailing_zeros() as usize;
                     trace_lanes &= trace_lanes - 1;
                     let arrived =
-                        arrive_lane(lanes, scene, &mut g, l, max_depth, nee, &mut stats.rays);
+                        arrive_lane(cpu, scene, &mut g, l, max_depth, nee, &mut stats.rays);
                     let alive = match arrived {
                         None => false,
                         Some((surface, albedo)) if nee && in_vector_stage(surface.material) => {
@@ -182,7 +182,7 @@ pub(super) fn render<L: Lanes>(
                         }
                     };
                     if !alive {
-                        finish(lanes, scene, &mut g, l, &mut sums, gbuffer, spp);
+                        finish(cpu, scene, &mut g, l, &mut sums, gbuffer, spp);
                         active &= !(1 << l);
                     }
                 }
@@ -198,7 +198,7 @@ pub(super) fn render<L: Lanes>(
                 while ended != 0 {
                     let l = ended.trailing_zeros() as usize;
                     ended &= ended - 1;
-                    finish(lanes, scene, &mut g, l, &mut sums, gbuffer, spp);
+                    finish(cpu, scene, &mut g, l, &mut sums, gbuffer, spp);
                 }
             }
         }
@@ -221,10 +221,10 @@ pub(super) fn render<L: Lanes>(
 /// a closure was left out of line, without the v3 build's features, and the AVX node
 /// tests of its shadow ray became calls.
 #[inline(always)]
-fn finish<L: Lanes>(
-    lanes: L,
+fn finish<I: Isa>(
+    cpu: Cpu<I>,
     scene: &RenderScene,
-    g: &mut Group<L::Simd>,
+    g: &mut Group<I>,
     l: usize,
     sums: &mut [(Vec3, Vec3)],
     gbuffer: &mut [PixelSample],
@@ -232,7 +232,7 @@ fn finish<L: Lanes>(
 ) {
     if let Some(s) = g.take_shadow(l) {
         let mut indirect = g.indirect.lane(l);
-        s.settle(lanes, scene, &mut indirect);
+        s.settle(cpu, scene, &mut indirect);
         g.indirect.set_lane(l, indirect);
     }
     let s = &g.out[l];
@@ -247,10 +247,10 @@ fn finish<L: Lanes>(
 /// Traces lane `l`'s ray together with its pending shadow ray, then
 /// [`super::integrator::arrive`]s: the surface where the path scatters on, if any.
 #[inline(always)]
-fn arrive_lane<'a, L: Lanes>(
-    lanes: L,
+fn arrive_lane<'a, I: Isa>(
+    cpu: Cpu<I>,
     scene: &'a RenderScene,
-    g: &mut Group<L::Simd>,
+    g: &mut Group<I>,
     l: usize,
     max_depth: u32,
     nee: bool,
@@ -259,7 +259,7 @@ fn arrive_lane<'a, L: Lanes>(
     let (o, d) = (g.o.lane(l), g.d.lane(l));
     *rays += 1;
     let mut path = g.path(l);
-    let hit = trace(lanes, scene, (o, d), g.take_shadow(l), &mut path.indirect);
+    let hit = trace(cpu, scene, (o, d), g.take_shadow(l), &mut path.indirect);
     let arrived = arrive(scene, &mut path, (o, d), hit, max_depth, nee, &mut g.out[l]);
     g.indirect.set_lane(l, path.indirect);
     arrived

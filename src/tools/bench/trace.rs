@@ -14,7 +14,8 @@ use gridlight_actors::state::SceneState;
 use serde::Serialize;
 
 use crate::assets::Assets;
-use crate::render::{render_pixels_in, KernelBuild, RenderError, RenderScene, Strategy};
+use crate::render::isa::IsaLevel;
+use crate::render::{render_pixels_in, RenderError, RenderScene, Strategy};
 use crate::simgrid::cost::thread_cpu_seconds;
 
 /// The settings of one benchmark run.
@@ -26,13 +27,13 @@ pub struct TraceSettings {
     pub max_depth: u32,
     /// Timed repetitions; the median is reported.
     pub runs: u32,
-    /// The kernel build that renders (one this CPU runs).
-    pub build: KernelBuild,
+    /// The instruction-set level whose kernel build renders (one this CPU runs).
+    pub isa: IsaLevel,
 }
 
 impl Default for TraceSettings {
     fn default() -> Self {
-        Self { width: 640, height: 480, spp: 4, max_depth: 5, runs: 3, build: KernelBuild::best() }
+        Self { width: 640, height: 480, spp: 4, max_depth: 5, runs: 3, isa: IsaLevel::best() }
     }
 }
 
@@ -113,7 +114,7 @@ pub fn bench_scene(
         let (start, start_cpu) = (Instant::now(), thread_cpu_seconds());
         let frame = run as u64;
         let stats =
-            render_pixels_in(settings.build, &scene, frame, &pixels, &mut out, Strategy::NeeMis);
+            render_pixels_in(settings.isa, &scene, frame, &pixels, &mut out, Strategy::NeeMis);
         runs.push((start.elapsed().as_secs_f64(), stats));
         cpu.push((thread_cpu_seconds() - start_cpu, stats));
     }
@@ -139,7 +140,7 @@ pub fn bench_scene(
         runs: settings.runs.max(1),
         node_lane_occupancy: lanes.node_occupancy(),
         leaf_lane_occupancy: lanes.leaf_occupancy(),
-        build: settings.build.name(),
+        build: settings.isa.name(),
         vector_lane_occupancy: stats.vector_lane_occupancy(),
         vector_vertex_share: stats.vector_vertex_share(),
     })
@@ -177,9 +178,9 @@ mod tests {
     #[test]
     fn report_counts_every_sample_and_at_least_one_ray_each() {
         let (assets, state) = cornell_box(640, 480);
-        for build in KernelBuild::ALL.into_iter().filter(|b| b.available()) {
+        for isa in IsaLevel::ALL.into_iter().filter(|b| b.available()) {
             let settings =
-                TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1, build };
+                TraceSettings { width: 8, height: 6, spp: 2, max_depth: 3, runs: 1, isa };
             let r = bench_scene("cornell-box", assets.clone(), &state, settings).unwrap();
             assert_eq!(r.samples, 8 * 6 * 2);
             assert!(r.rays >= r.samples && r.rays <= r.samples * 2 * 3);
@@ -192,7 +193,7 @@ mod tests {
             assert!(r.node_lane_occupancy >= 0.25 && r.node_lane_occupancy <= 1.0);
             // Every vertex of the Cornell box is diffuse and area-lit: all take the vector
             // stage, whose lanes drain only at the end of the 96 paths.
-            assert_eq!((r.build, r.vector_vertex_share), (build.name(), Some(1.0)));
+            assert_eq!((r.build, r.vector_vertex_share), (isa.name(), Some(1.0)));
             let occupancy = r.vector_lane_occupancy.unwrap();
             assert!(occupancy > 0.5 && occupancy <= 1.0, "{occupancy}");
             let json = serde_json::to_value(&r).unwrap();

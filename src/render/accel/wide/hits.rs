@@ -4,7 +4,10 @@
 
 #[cfg(not(target_arch = "x86_64"))]
 use super::super::triangle::TriEdges;
-use super::{Lanes, Node, Packet, WideRay, ROBUST};
+use super::{Node, Packet, WideRay, ROBUST};
+use crate::render::isa::Isa;
+#[cfg(target_arch = "x86_64")]
+use crate::render::isa::IsaLevel;
 #[cfg(not(target_arch = "x86_64"))]
 use glam::Vec3A;
 
@@ -33,13 +36,14 @@ impl Node {
     /// halves (explicit, because the auto-vectoriser split the lanes unevenly).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub(super) fn hits<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
+    pub(super) fn hits<I: Isa>(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
         use std::arch::x86_64::*;
         let p = &self.planes;
         let (n, f) = (ray.near, ray.far);
         let mut tnear = [0.0f32; 8];
-        if L::AVX {
-            // SAFETY: an `Avx` token exists only where the CPU has AVX; the loads read
+        if I::LEVEL != IsaLevel::Baseline {
+            // SAFETY: the v3 and v4 levels are reached only through a `Cpu` of theirs,
+            // which exists only where the CPU has AVX; the loads read
             // whole 32-byte aligned rows of `planes`, the store all of `tnear`.
             let mask = unsafe {
                 let o = ray.o.map(|x| _mm256_set1_ps(x));
@@ -87,7 +91,7 @@ impl Node {
     /// The same test lane by lane, where there is no SSE.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
-    pub(super) fn hits<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
+    pub(super) fn hits<I: Isa>(&self, ray: &WideRay, tmax: f32) -> (u32, [f32; 8]) {
         let p = &self.planes;
         let (n, f) = (ray.near, ray.far);
         let t = |row: usize, axis: usize, i: usize| (p[row][i] - ray.o[axis]) * ray.inv[axis];

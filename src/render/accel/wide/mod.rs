@@ -28,18 +28,16 @@
 //! fixed order (Rust neither contracts nor reorders float arithmetic), whatever width the
 //! compiler picks, and ties go to the lower lane and the earlier stack entry.
 //!
-//! Files: this one holds the layout (nodes, leaf packets, the prepared ray); `tokens.rs`
-//! the instruction sets a node test may use, `build.rs` the layout made from obvhs's
-//! CWBVH, `hits.rs` the node and packet tests, `walk.rs` the traversals.
+//! Files: this one holds the layout (nodes, leaf packets, the prepared ray); `build.rs`
+//! the layout made from obvhs's CWBVH, `hits.rs` the node and packet tests (in the
+//! instructions of the [`crate::render::isa::Isa`] they are compiled for), `walk.rs` the
+//! traversals.
 
 use glam::Vec3A;
 
 mod build;
 mod hits;
-mod tokens;
 mod walk;
-
-pub use tokens::{Avx, Avx512, Lanes, Sse};
 
 /// A child reference with this bit set is a leaf (its packet's index below it).
 const LEAF: u32 = 0x8000_0000;

@@ -3,7 +3,8 @@
 
 use std::mem::MaybeUninit;
 
-use super::{Lanes, TriHit, WideBvh, WideRay, LEAF, STACK};
+use super::{TriHit, WideBvh, WideRay, LEAF, STACK};
+use crate::render::isa::Isa;
 
 /// The traversal stack: `(child reference, entry distance)`, inline up to [`STACK`]
 /// entries (eight-wide trees are shallow), on the heap beyond.
@@ -51,24 +52,24 @@ impl Stack {
 impl WideBvh {
     /// The closest triangle the ray hits in (0, tmax).
     #[inline(always)]
-    pub(in crate::render::accel) fn intersect<L: Lanes>(
+    pub(in crate::render::accel) fn intersect<I: Isa>(
         &self,
         ray: &WideRay,
         tmax: f32,
     ) -> Option<TriHit> {
         let mut walk = ClosestWalk::new(self, tmax);
         while !walk.done {
-            walk.step::<L>(self, ray);
+            walk.step::<I>(self, ray);
         }
         walk.hit()
     }
 
     /// Whether any triangle blocks the ray in (0, tmax).
     #[inline(always)]
-    pub(in crate::render::accel) fn occluded<L: Lanes>(&self, ray: &WideRay, tmax: f32) -> bool {
+    pub(in crate::render::accel) fn occluded<I: Isa>(&self, ray: &WideRay, tmax: f32) -> bool {
         let mut walk = AnyWalk::new(self);
         while !walk.done {
-            walk.step::<L>(self, ray, tmax);
+            walk.step::<I>(self, ray, tmax);
         }
         walk.blocked
     }
@@ -79,7 +80,7 @@ impl WideBvh {
     /// from memory: interleaved, the core has both loads in flight at once. Each walk
     /// takes the steps it takes alone, so the answers are the same bit for bit.
     #[inline(always)]
-    pub(in crate::render::accel) fn intersect_and_occluded<L: Lanes>(
+    pub(in crate::render::accel) fn intersect_and_occluded<I: Isa>(
         &self,
         (closest, tmax): (&WideRay, f32),
         (shadow, shadow_tmax): (&WideRay, f32),
@@ -87,14 +88,14 @@ impl WideBvh {
         let mut a = ClosestWalk::new(self, tmax);
         let mut b = AnyWalk::new(self);
         while !a.done && !b.done {
-            a.step::<L>(self, closest);
-            b.step::<L>(self, shadow, shadow_tmax);
+            a.step::<I>(self, closest);
+            b.step::<I>(self, shadow, shadow_tmax);
         }
         while !a.done {
-            a.step::<L>(self, closest);
+            a.step::<I>(self, closest);
         }
         while !b.done {
-            b.step::<L>(self, shadow, shadow_tmax);
+            b.step::<I>(self, shadow, shadow_tmax);
         }
         (a.hit(), b.blocked)
     }
@@ -124,11 +125,11 @@ impl ClosestWalk {
 
     /// Tests the current node or leaf and moves to the next (or finishes).
     #[inline(always)]
-    fn step<L: Lanes>(&mut self, bvh: &WideBvh, ray: &WideRay) {
+    fn step<I: Isa>(&mut self, bvh: &WideBvh, ray: &WideRay) {
         let current = self.current;
         if current & LEAF == 0 {
             let node = &bvh.nodes[current as usize];
-            let (mask, tnear) = node.hits::<L>(ray, self.best.t);
+            let (mask, tnear) = node.hits::<I>(ray, self.best.t);
             if mask != 0 {
                 let first = mask.trailing_zeros() as usize;
                 if mask & (mask - 1) == 0 {
@@ -200,11 +201,11 @@ impl AnyWalk {
 
     /// Tests the current node or leaf and moves to the next (or finishes).
     #[inline(always)]
-    fn step<L: Lanes>(&mut self, bvh: &WideBvh, ray: &WideRay, tmax: f32) {
+    fn step<I: Isa>(&mut self, bvh: &WideBvh, ray: &WideRay, tmax: f32) {
         let current = self.current;
         if current & LEAF == 0 {
             let node = &bvh.nodes[current as usize];
-            let (mut mask, _) = node.hits::<L>(ray, tmax);
+            let (mut mask, _) = node.hits::<I>(ray, tmax);
             if mask != 0 {
                 self.current = node.child[mask.trailing_zeros() as usize];
                 mask &= mask - 1;
