@@ -182,7 +182,8 @@ pub fn start(
             );
             let supervision =
                 Supervision::restarting(ActorKind::Announcer, config.restart, counters.clone());
-            Some(Announcer::new(a, &what, supervision)?.with_faults(faults.clone()))
+            let secret = config.secret.as_deref();
+            Some(Announcer::new(a, &what, secret, supervision)?.with_faults(faults.clone()))
         }
         None => None,
     };

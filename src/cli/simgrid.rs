@@ -52,7 +52,6 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
     anyhow::ensure!(!cache.is_empty(), "{} holds no frames", args.cache.display());
     let availability = Availability { curve: args.availability, n: args.grid, period: args.period };
     let count = args.count.unwrap_or_else(|| availability.peak().saturating_sub(args.first));
-    let cache_dir = std::env::temp_dir().join(format!("gridlight-simgrid-{}", std::process::id()));
     let opts = ProcessOptions {
         master: args.master,
         availability,
@@ -60,7 +59,6 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
         count,
         pipeline: args.pipeline.max(1),
         frame_rate: args.fps.filter(|f| *f > 0.0),
-        cache_dir: cache_dir.clone(),
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -77,6 +75,5 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
         });
         process::run_until(opts, Arc::new(SimGrid::new(cache)), cancel).await
     });
-    let _ = std::fs::remove_dir_all(&cache_dir);
     Ok(outcome?)
 }

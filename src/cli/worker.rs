@@ -14,7 +14,9 @@ use super::worker_file::WorkerFile;
 use super::GlobalArgs;
 use crate::worker::discover::{self, DiscoverOptions};
 use crate::worker::idle::IdlePolicy;
-use crate::worker::{self, Priority, RendererKind, WhenIdle, WorkerConfig, WorkerError};
+use crate::worker::{
+    self, CacheChoice, Priority, RendererKind, WhenIdle, WorkerConfig, WorkerError,
+};
 
 /// Arguments of `gridlight worker`.
 #[derive(Debug, Clone, clap::Args)]
@@ -40,9 +42,22 @@ pub struct Args {
     /// removed).
     #[arg(long, value_name = "FILE", env = "GRIDLIGHT_SECRET_FILE")]
     pub secret_file: Option<PathBuf>,
-    /// Asset cache directory (default: `gridlight` under the user's cache directory).
+    /// Asset cache directory (default: `gridlight` under the user's cache directory). It is
+    /// made owner-only (0700, files 0600); an existing one readable by others is tightened.
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<PathBuf>,
+    /// Where fetched assets are kept: `disk` (the cache directory, reused across runs) or
+    /// `none` (this process's memory only: nothing is written to disk, every start fetches
+    /// the scene again) [default: disk].
+    #[arg(long, value_enum, value_name = "WHERE", env = "GRIDLIGHT_CACHE")]
+    pub cache: Option<CacheMode>,
+    /// Wipe the scene's assets from the cache when this worker leaves the grid (Ctrl-C,
+    /// SIGTERM, a fatal error, or every connection to the master lost); other scenes'
+    /// entries stay. For offices that keep no client data on desks.
+    #[arg(long, value_name = "BOOL", env = "GRIDLIGHT_FORGET_ON_EXIT", num_args = 0..=1,
+        require_equals = true, default_missing_value = "true",
+        value_parser = BoolishValueParser::new())]
+    pub forget_on_exit: Option<bool>,
     /// Name shown in the master's logs (default: host name and process id).
     #[arg(long)]
     pub name: Option<String>,
@@ -90,15 +105,30 @@ pub struct Args {
     pub null_render_delay_ms: u32,
 }
 
-/// Runs `gridlight worker` until Ctrl-C or a fatal error.
+/// `--cache`: where fetched assets are kept.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CacheMode {
+    /// The on-disk cache directory.
+    #[default]
+    Disk,
+    /// Memory only.
+    None,
+}
+
+/// Runs `gridlight worker` until Ctrl-C, SIGTERM or a fatal error.
 pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
     let file = match &args.config {
         Some(path) => WorkerFile::load(path)?,
         None => WorkerFile::default(),
     };
+    let secret = match args.secret_file.as_ref().or(file.secret_file.as_ref()) {
+        Some(path) => Some(gridlight_actors::auth::read_secret_file(path)?),
+        None => None,
+    };
     let master = match args.master.clone().or(file.master.clone()) {
         Some(master) => master,
-        None => discovered(&args, &file)?,
+        None => discovered(&args, &file, secret.clone())?,
     };
     let (gpu, threads_given) = (args.gpu.unwrap_or_default(), args.threads.is_some());
     let config = worker_config(args, file, master)?;
@@ -114,8 +144,8 @@ pub fn run(args: Args, _global: &GlobalArgs) -> anyhow::Result<()> {
     }
 }
 
-/// The master found by listening for announcements.
-fn discovered(args: &Args, file: &WorkerFile) -> anyhow::Result<String> {
+/// The master found by listening for announcements (only verified ones with `secret`).
+fn discovered(args: &Args, file: &WorkerFile, secret: Option<Vec<u8>>) -> anyhow::Result<String> {
     let opts = DiscoverOptions {
         port: args
             .discovery_port
@@ -126,6 +156,7 @@ fn discovered(args: &Args, file: &WorkerFile) -> anyhow::Result<String> {
             Some(s) => seconds("--discover-timeout", s)?,
             None => discover::DEFAULT_TIMEOUT,
         },
+        secret,
     };
     Ok(discover::discover(&opts)?.addr.to_string())
 }
@@ -173,10 +204,8 @@ fn worker_config(args: Args, file: WorkerFile, master: String) -> anyhow::Result
         master,
         threads: args.threads.or(file.threads).unwrap_or_else(worker::idle_cores).max(1),
         secret,
-        cache_dir: args
-            .cache_dir
-            .or(file.cache_dir)
-            .unwrap_or_else(worker::cache::AssetCache::default_dir),
+        cache: cache_choice(args.cache.or(file.cache), args.cache_dir.or(file.cache_dir))?,
+        forget_on_exit: args.forget_on_exit.or(file.forget_on_exit).unwrap_or(false),
         name: args.name.or(file.name).unwrap_or_else(worker::default_name),
         pipeline: args.pipeline.max(1),
         renderer: if args.null_render {
@@ -187,6 +216,21 @@ fn worker_config(args: Args, file: WorkerFile, master: String) -> anyhow::Result
         priority: args.priority.or(file.priority).unwrap_or_default(),
         when_idle,
     })
+}
+
+/// `--cache` and `--cache-dir` together.
+fn cache_choice(mode: Option<CacheMode>, dir: Option<PathBuf>) -> anyhow::Result<CacheChoice> {
+    match (mode.unwrap_or_default(), dir) {
+        (CacheMode::None, Some(dir)) => bail!(
+            "--cache none keeps assets in memory only, but a cache directory is given ({}): \
+             drop one of the two",
+            dir.display()
+        ),
+        (CacheMode::None, None) => Ok(CacheChoice::Memory),
+        (CacheMode::Disk, dir) => {
+            Ok(CacheChoice::Dir(dir.unwrap_or_else(worker::cache::AssetCache::default_dir)))
+        }
+    }
 }
 
 /// A non-negative, finite number of seconds.
@@ -258,6 +302,23 @@ mod tests {
         )
         .unwrap_err();
         assert!(format!("{err:#}").contains("percent"), "{err:#}");
+    }
+
+    #[test]
+    fn the_cache_is_on_disk_unless_told_none_and_none_takes_no_directory() {
+        let c = worker_config(parse(&["--cache-dir", "/x"]), WorkerFile::default(), "m:1".into());
+        assert_eq!(c.unwrap().cache, CacheChoice::Dir("/x".into()));
+        let c = worker_config(parse(&["--cache", "none"]), WorkerFile::default(), "m:1".into());
+        let c = c.unwrap();
+        assert_eq!((c.cache, c.forget_on_exit), (CacheChoice::Memory, false));
+        let file = WorkerFile { cache_dir: Some("/y".into()), ..Default::default() };
+        let err = worker_config(parse(&["--cache", "none"]), file, "m:1".into()).unwrap_err();
+        assert!(
+            err.to_string().contains("--cache none") && err.to_string().contains("/y"),
+            "{err}"
+        );
+        let c = worker_config(parse(&["--forget-on-exit"]), WorkerFile::default(), "m:1".into());
+        assert!(c.unwrap().forget_on_exit);
     }
 
     #[test]

@@ -37,6 +37,8 @@ pub struct WorkerFile {
     pub name: Option<String>,
     pub secret_file: Option<PathBuf>,
     pub cache_dir: Option<PathBuf>,
+    pub cache: Option<super::worker::CacheMode>,
+    pub forget_on_exit: Option<bool>,
     pub priority: Option<Priority>,
     pub when_idle: Option<bool>,
     #[serde(default)]

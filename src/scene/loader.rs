@@ -60,8 +60,7 @@ pub fn load_albedo_texture(
     asset: &str,
     resolver: &dyn AssetResolver,
 ) -> Result<Texture, AssetError> {
-    let file = resolver.resolve(asset)?;
-    let image = image::open(&file).map_err(|source| AssetError::Image { file, source })?;
+    let image = resolver.read(asset)?.decode_image()?;
     let rgb = image.to_rgb8();
     let codes = rgb.pixels().map(|p| p.0).collect();
     Ok(Texture::srgb8(rgb.width(), rgb.height(), codes))
@@ -69,8 +68,7 @@ pub fn load_albedo_texture(
 
 /// A linear HDR environment map; non-finite or negative texels are set to zero.
 pub fn load_environment(asset: &str, resolver: &dyn AssetResolver) -> Result<Texture, AssetError> {
-    let file = resolver.resolve(asset)?;
-    let image = image::open(&file).map_err(|source| AssetError::Image { file, source })?;
+    let image = resolver.read(asset)?.decode_image()?;
     let rgb = image.to_rgb32f();
     let texels = rgb
         .pixels()

@@ -32,7 +32,7 @@ pub use error::{AssetError, Problem, SceneError};
 pub use loader::load_assets;
 pub use manifest::{asset_paths, manifest};
 pub use pacing::{display_pacing, PacingOverrides};
-pub use search::{AssetResolver, AssetSearchPath, ResolveError};
+pub use search::{AssetBytes, AssetResolver, AssetSearchPath, ResolveError};
 
 /// A loaded scene: the state a worker renders and the asset data it names.
 #[derive(Debug, Clone)]

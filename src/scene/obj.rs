@@ -7,14 +7,12 @@
 //! material the MTL lacks), as `gridlight_actors::state::Object::materials` documents.
 
 use std::cell::RefCell;
-use std::fs::File;
-use std::io::BufReader;
 use std::path::Path;
 
 use glam::{Vec2, Vec3};
 
 use super::error::AssetError;
-use super::search::{sibling_asset, AssetResolver};
+use super::search::{sibling_asset, AssetBytes, AssetResolver};
 use crate::assets::Mesh;
 
 /// What one OBJ file yields.
@@ -39,9 +37,7 @@ fn load_options() -> tobj::LoadOptions {
 
 /// Reads the OBJ at asset path `asset` and its MTL files.
 pub fn read_obj(asset: &str, resolver: &dyn AssetResolver) -> Result<ObjData, AssetError> {
-    let file = resolver.resolve(asset)?;
-    let reader =
-        File::open(&file).map_err(|source| AssetError::Read { file: file.clone(), source })?;
+    let AssetBytes { file, bytes } = resolver.read(asset)?;
     let mtl_assets = RefCell::new(Vec::new());
     // tobj's material loader can only return tobj errors; keep ours on the side.
     let mtl_failure: RefCell<Option<(String, AssetError)>> = RefCell::new(None);
@@ -58,9 +54,8 @@ pub fn read_obj(asset: &str, resolver: &dyn AssetResolver) -> Result<ObjData, As
             }
         }
     };
-    let (models, materials) =
-        tobj::load_obj_buf(&mut BufReader::new(reader), &load_options(), load_mtl)
-            .map_err(|source| AssetError::Obj { file: file.clone(), source })?;
+    let (models, materials) = tobj::load_obj_buf(&mut &bytes[..], &load_options(), load_mtl)
+        .map_err(|source| AssetError::Obj { file: file.clone(), source })?;
     if let Some((mtl, err)) = mtl_failure.into_inner() {
         return Err(AssetError::Mtl { file, mtl, source: Box::new(err) });
     }
@@ -74,10 +69,7 @@ pub fn read_obj(asset: &str, resolver: &dyn AssetResolver) -> Result<ObjData, As
 }
 
 fn read_mtl(asset: &str, resolver: &dyn AssetResolver) -> Result<tobj::MTLLoadResult, AssetError> {
-    let file = resolver.resolve(asset)?;
-    let reader =
-        File::open(&file).map_err(|source| AssetError::Read { file: file.clone(), source })?;
-    Ok(tobj::load_mtl_buf(&mut BufReader::new(reader)))
+    Ok(tobj::load_mtl_buf(&mut &resolver.read(asset)?.bytes[..]))
 }
 
 /// Merges tobj's models into one mesh; `material_count` is the number of MTL materials, so

@@ -6,9 +6,12 @@
 //! implementation: `--assets DIR` (in order), then `GRIDLIGHT_ASSETS` (colon-separated), then
 //! `assets/` beside the scene file, then `scenes/assets/` in the current directory.
 
+use std::borrow::Cow;
 use std::ffi::OsStr;
 use std::fmt;
 use std::path::{Component, Path, PathBuf};
+
+use super::error::AssetError;
 
 /// Name of the environment variable holding extra asset directories.
 pub const ASSETS_ENV: &str = "GRIDLIGHT_ASSETS";
@@ -17,6 +20,40 @@ pub const ASSETS_ENV: &str = "GRIDLIGHT_ASSETS";
 pub trait AssetResolver {
     /// The file holding `asset`, or why there is none.
     fn resolve(&self, asset: &str) -> Result<PathBuf, ResolveError>;
+
+    /// The bytes of `asset`: by default the file [`AssetResolver::resolve`] names. A
+    /// resolver that holds assets in memory (a worker with `--cache none`) overrides it.
+    fn read(&self, asset: &str) -> Result<AssetBytes<'_>, AssetError> {
+        read_file(self.resolve(asset)?)
+    }
+}
+
+/// The bytes of a resolved asset file.
+pub fn read_file(file: PathBuf) -> Result<AssetBytes<'static>, AssetError> {
+    let bytes =
+        std::fs::read(&file).map_err(|source| AssetError::Read { file: file.clone(), source })?;
+    Ok(AssetBytes { file, bytes: Cow::Owned(bytes) })
+}
+
+/// An asset's bytes, and the name its errors give it (its file, or its asset path).
+#[derive(Debug)]
+pub struct AssetBytes<'a> {
+    pub file: PathBuf,
+    pub bytes: Cow<'a, [u8]>,
+}
+
+impl AssetBytes<'_> {
+    /// The image format its name says, else the one its first bytes say.
+    pub fn decode_image(&self) -> Result<image::DynamicImage, AssetError> {
+        let cursor = std::io::Cursor::new(&self.bytes[..]);
+        let reader = match image::ImageFormat::from_path(&self.file) {
+            Ok(format) => image::ImageReader::with_format(cursor, format),
+            Err(_) => image::ImageReader::new(cursor)
+                .with_guessed_format()
+                .map_err(|source| AssetError::Read { file: self.file.clone(), source })?,
+        };
+        reader.decode().map_err(|source| AssetError::Image { file: self.file.clone(), source })
+    }
 }
 
 /// Why an asset path could not be resolved.

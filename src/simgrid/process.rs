@@ -8,7 +8,6 @@
 //! paused (`Paused { Withdrawn }` on the wire), as a desk whose owner came back: the jobs
 //! it held are lost, never recomputed.
 
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -42,8 +41,6 @@ pub struct ProcessOptions {
     /// With a fixed frame rate, frame `i` is the one due `i / fps` seconds after start;
     /// `None`: the newest frame a job named.
     pub frame_rate: Option<f32>,
-    /// The (empty) asset cache the links open; simulated workers load no assets.
-    pub cache_dir: PathBuf,
 }
 
 /// Runs this process's workers until `cancel` fires or one fails fatally.
@@ -52,7 +49,7 @@ pub async fn run_until(
     grid: Arc<SimGrid>,
     cancel: CancellationToken,
 ) -> Result<(), WorkerError> {
-    let shared = Arc::new(Shared::new(AssetCache::open(&opts.cache_dir)?));
+    let shared = Arc::new(Shared::new(AssetCache::in_memory()));
     info!(master = %opts.master, first = opts.first, count = opts.count, "simulated workers starting");
     let mut switches = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();

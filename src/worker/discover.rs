@@ -7,16 +7,23 @@
 //! choose or name one. Announcements of another protocol version are reported, not
 //! joined. Anything that is not an announcement is ignored (`discovery` decodes and
 //! bounds every datagram).
+//!
+//! A worker with a secret believes only announcements tagged under it, recent and not
+//! replayed (`discovery::tag`); it ignores the others, says so in one warning (the first
+//! one it ignores, not one line per datagram), and counts them in the error it ends with
+//! when no master verified. A worker without a secret cannot check tags and hears every
+//! master, as before.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
+use gridlight_actors::discovery::tag::{now_ms, Verifier};
 use gridlight_actors::discovery::{Announcement, DISCOVERY_PORT, MAX_ANNOUNCEMENT_LEN};
 use gridlight_actors::protocol::PROTOCOL_VERSION;
 use socket2::{Domain, Protocol, Socket, Type};
-use tracing::{debug, info};
+use tracing::{debug, info, warn};
 
 /// How long to wait for announcements when not told.
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(10);
@@ -33,11 +40,13 @@ pub struct DiscoverOptions {
     pub master_name: Option<String>,
     /// Give up after this long.
     pub timeout: Duration,
+    /// The shared secret: only announcements tagged under it are believed.
+    pub secret: Option<Vec<u8>>,
 }
 
 impl Default for DiscoverOptions {
     fn default() -> Self {
-        Self { port: DISCOVERY_PORT, master_name: None, timeout: DEFAULT_TIMEOUT }
+        Self { port: DISCOVERY_PORT, master_name: None, timeout: DEFAULT_TIMEOUT, secret: None }
     }
 }
 
@@ -81,6 +90,8 @@ pub fn discover(opts: &DiscoverOptions) -> Result<Found, DiscoverError> {
     let mut heard: BTreeMap<(String, SocketAddr), Announcement> = BTreeMap::new();
     let mut first_heard: Option<Instant> = None;
     let mut buf = [0u8; MAX_ANNOUNCEMENT_LEN + 1];
+    let mut verifier = opts.secret.as_deref().map(Verifier::new);
+    let mut ignored: BTreeMap<&'static str, u64> = BTreeMap::new();
     loop {
         let now = Instant::now();
         let deadline = started + opts.timeout;
@@ -90,7 +101,7 @@ pub fn discover(opts: &DiscoverOptions) -> Result<Found, DiscoverError> {
             return Ok(found);
         }
         if now >= deadline {
-            return Err(not_found(opts, &heard));
+            return Err(not_found(opts, &heard, &ignored));
         }
         let until = collect_end.map_or(deadline, |e| e.min(deadline));
         let wait = until.saturating_duration_since(now).max(Duration::from_millis(10));
@@ -108,7 +119,19 @@ pub fn discover(opts: &DiscoverOptions) -> Result<Found, DiscoverError> {
             Err(e) => return Err(DiscoverError::Listen { port: opts.port, cause: e }),
         };
         match Announcement::decode(&buf[..n]) {
-            Ok(a) => {
+            Ok(r) => {
+                if let Some(v) = &mut verifier {
+                    if let Err(why) = v.check(&r, now_ms()) {
+                        if ignored.is_empty() {
+                            warn!(%from, master = %r.announcement.name, cause = %why,
+                                "announcement ignored: it does not verify with this worker's \
+                                 secret (further ones are ignored without a word)");
+                        }
+                        *ignored.entry(why.kind()).or_default() += 1;
+                        continue;
+                    }
+                }
+                let a = r.announcement;
                 let addr = a.address(from);
                 if heard.insert((a.name.clone(), addr), a).is_none() {
                     debug!(%from, %addr, "announcement heard");
@@ -149,8 +172,18 @@ fn choose(
 fn not_found(
     opts: &DiscoverOptions,
     heard: &BTreeMap<(String, SocketAddr), Announcement>,
+    ignored: &BTreeMap<&'static str, u64>,
 ) -> DiscoverError {
     let secs = opts.timeout.as_secs_f64();
+    let mut unverified = String::new();
+    if !ignored.is_empty() {
+        let counts: Vec<String> = ignored.iter().map(|(k, n)| format!("{n} {k}")).collect();
+        unverified = format!(
+            " (announcements ignored because they do not verify with this worker's secret: {}; \
+             give master and worker the same --secret-file)",
+            counts.join(", ")
+        );
+    }
     match &opts.master_name {
         Some(name) if !heard.is_empty() => {
             DiscoverError::NameNotHeard { name: name.clone(), secs, heard: list(heard) }
@@ -159,9 +192,9 @@ fn not_found(
             port: opts.port,
             secs,
             heard: if heard.is_empty() {
-                String::new()
+                unverified
             } else {
-                format!(" in this worker's protocol;{}", list(heard))
+                format!("{unverified} in this worker's protocol;{}", list(heard))
             },
         },
     }
@@ -246,7 +279,7 @@ mod tests {
     fn a_master_of_another_protocol_is_reported_not_joined() {
         let h = heard(&[("old", PROTOCOL_VERSION - 1)]);
         assert!(choose(&opts(None), &h, true).unwrap().is_none());
-        let err = not_found(&opts(None), &h).to_string();
+        let err = not_found(&opts(None), &h, &BTreeMap::new()).to_string();
         assert!(err.contains("speaks protocol") && err.contains("--master HOST:PORT"), "{err}");
     }
 }

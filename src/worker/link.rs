@@ -162,6 +162,7 @@ where
         other => return Err(unexpected("Welcome", &other)),
     };
     info!(worker = %config.name, worker_id, sets = sets.sets, assets = manifest.len(), "welcomed");
+    shared.forget.note_scene(&manifest);
 
     let view = fetch_assets(&mut conn, shared, &manifest).await?;
     progress.welcomed = true;
@@ -333,7 +334,10 @@ where
         }
         blob.finish()?;
     }
-    Ok(shared.cache.view(manifest)?)
+    let view = shared.cache.view(manifest)?;
+    // Under the fetch lock: a wipe (`--forget-on-exit`) sees this connection from now on.
+    shared.forget.connection_started();
+    Ok(view)
 }
 
 /// The receiving half and the writer queue of one connection.

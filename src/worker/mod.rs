@@ -11,8 +11,9 @@
 //! `--when-idle` the worker pauses while its desk's owner is active ([`idle`]). Without
 //! `--master` it finds a master that announces itself on the LAN ([`discover`]).
 //!
-//! - [`cache`]: the hash-keyed on-disk asset cache.
+//! - [`cache`]: the hash-keyed asset cache, on disk (owner-only) or in memory.
 //! - `channel`: the encrypted channel's handshake, before a link's first message.
+//! - [`forget`]: wiping the fetched scenes when the worker leaves (`--forget-on-exit`).
 //! - [`backoff`]: reconnect delays.
 //! - [`link`]: one connection to the master: its protocol phases.
 //! - [`render`]: the render thread (path tracer or null renderer).
@@ -27,6 +28,7 @@ pub mod backoff;
 pub mod cache;
 mod channel;
 pub mod discover;
+pub mod forget;
 pub mod gpu;
 pub mod idle;
 pub mod link;
@@ -72,8 +74,10 @@ pub struct WorkerConfig {
     pub threads: usize,
     /// Shared secret proved by HMAC, if the master requires one.
     pub secret: Option<Vec<u8>>,
-    /// The asset cache directory.
-    pub cache_dir: std::path::PathBuf,
+    /// Where fetched assets are kept.
+    pub cache: CacheChoice,
+    /// Wipe the fetched scenes from the cache when leaving the grid (`--forget-on-exit`).
+    pub forget_on_exit: bool,
     /// Base name; connection `i` calls itself `NAME#i`.
     pub name: String,
     /// Jobs held per connection.
@@ -83,6 +87,34 @@ pub struct WorkerConfig {
     pub priority: Priority,
     /// Whether the worker gives way to its desk's owner.
     pub when_idle: WhenIdle,
+}
+
+/// Where a worker keeps the assets it fetched.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CacheChoice {
+    /// The on-disk cache in this directory (`--cache-dir`).
+    Dir(std::path::PathBuf),
+    /// This process's memory only (`--cache none`): nothing is written to disk.
+    Memory,
+}
+
+impl CacheChoice {
+    /// Opens the cache.
+    pub fn open(&self) -> Result<cache::AssetCache, cache::CacheError> {
+        match self {
+            Self::Dir(dir) => cache::AssetCache::open(dir),
+            Self::Memory => Ok(cache::AssetCache::in_memory()),
+        }
+    }
+}
+
+impl std::fmt::Display for CacheChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Dir(dir) => write!(f, "{}", dir.display()),
+            Self::Memory => f.write_str("memory only"),
+        }
+    }
 }
 
 /// Whether, and how, a worker pauses while its desk's owner is active.
@@ -156,7 +188,7 @@ pub fn default_name() -> String {
     format!("{host}:{}", std::process::id())
 }
 
-/// Runs a worker process until Ctrl-C (`Ok`) or a fatal error.
+/// Runs a worker process until Ctrl-C or SIGTERM (`Ok`) or a fatal error.
 pub fn run(config: WorkerConfig) -> Result<(), WorkerError> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -164,24 +196,18 @@ pub fn run(config: WorkerConfig) -> Result<(), WorkerError> {
         .enable_all()
         .build()
         .map_err(WorkerError::Runtime)?;
-    runtime.block_on(async move {
-        let cancel = CancellationToken::new();
-        let ctrl_c = cancel.clone();
-        tokio::spawn(async move {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                info!("Ctrl-C: shutting down");
-            }
-            ctrl_c.cancel();
-        });
-        run_until(config, cancel).await
-    })
+    let cancel = CancellationToken::new();
+    let stop = cancel.clone();
+    // Ctrl-C and SIGTERM alike end the connections cleanly (and wipe, with --forget-on-exit).
+    crate::signals::on_stop_signal(move |_| stop.cancel()).map_err(WorkerError::Runtime)?;
+    runtime.block_on(run_until(config, cancel))
 }
 
 /// Runs the worker's connections until `cancel` fires (`Ok`) or one fails fatally.
 pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Result<(), WorkerError> {
-    let shared = Arc::new(Shared::new(cache::AssetCache::open(&config.cache_dir)?));
-    info!(master = %config.master, threads = config.threads, cache = %config.cache_dir.display(),
-        priority = ?config.priority, "worker starting");
+    let shared = Arc::new(Shared::forgetting(config.cache.open()?, config.forget_on_exit));
+    info!(master = %config.master, threads = config.threads, cache = %config.cache,
+        forget_on_exit = config.forget_on_exit, priority = ?config.priority, "worker starting");
     let activity = match config.when_idle.clone() {
         WhenIdle::Off => watch::channel(Activity::Working).1,
         WhenIdle::Follow(rx) => rx,
@@ -220,6 +246,7 @@ pub async fn run_until(config: WorkerConfig, cancel: CancellationToken) -> Resul
             }
         }
     }
+    shared.forget_if_idle("the worker stops").await;
     outcome
 }
 
@@ -246,6 +273,13 @@ pub(crate) async fn connection_loop(
             }
             Err(err) => Err(err),
         };
+        if progress.welcomed
+            && shared.forget.connection_ended()
+            && !cancel.is_cancelled()
+            && !matches!(outcome, Ok(SessionEnd::Shutdown))
+        {
+            shared.forget_if_idle("every connection to the master is gone").await;
+        }
         match outcome {
             Ok(LinkEnd::Shutdown) => return Ok(()),
             Ok(LinkEnd::Closed) => info!(worker = %config.name, "master closed the connection"),

@@ -1,36 +1,15 @@
-//! Loading a scene's assets from the worker's cache: the scene loader's
-//! [`AssetResolver`] over a [`CacheView`].
+//! Loading a scene's assets from the worker's cache: the scene loader over a
+//! [`CacheView`] (which is an `AssetResolver`: `cache`).
 //!
 //! The loader itself is the master's (`crate::scene::load_assets`): the worker resolves
 //! the same asset paths, only against the files it fetched by hash, so both sides build
 //! identical meshes and textures.
-
-use std::path::PathBuf;
 
 use gridlight_actors::state::{Geometry, SceneState};
 
 use super::cache::CacheView;
 use super::WorkerError;
 use crate::assets::Assets;
-use crate::scene::{AssetResolver, ResolveError};
-
-impl AssetResolver for CacheView {
-    fn resolve(&self, asset: &str) -> Result<PathBuf, ResolveError> {
-        crate::scene::search::check_asset_path(asset)?;
-        let path = self.resolve(asset).map_err(|e| ResolveError::Unavailable {
-            asset: asset.to_owned(),
-            reason: e.to_string(),
-        })?;
-        if path.is_file() {
-            Ok(path)
-        } else {
-            Err(ResolveError::Unavailable {
-                asset: asset.to_owned(),
-                reason: "not in the master's manifest, so not in the worker's cache".to_owned(),
-            })
-        }
-    }
-}
 
 /// Every asset `state` names, read from `view`.
 pub fn load_assets(view: &CacheView, state: &SceneState) -> Result<Assets, WorkerError> {

@@ -7,7 +7,6 @@
 //! start-up time.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use gridlight_actors::protocol::{Partition, SetsConfig};
@@ -15,6 +14,7 @@ use gridlight_actors::sets::{SetTable, SetsError};
 use gridlight_actors::state::{Resolution, SceneState};
 
 use super::cache::{AssetCache, CacheView};
+use super::forget::Forget;
 use super::WorkerError;
 use crate::assets::Assets;
 
@@ -26,17 +26,26 @@ pub struct Shared {
     pub cache: AssetCache,
     /// Held while one connection fetches assets, so the others wait and find them cached.
     pub fetch_lock: tokio::sync::Mutex<()>,
+    /// The scenes to wipe when the worker leaves the grid (`--forget-on-exit`).
+    pub forget: Forget,
     set_tables: Mutex<HashMap<SetKey, Arc<SetTable>>>,
-    /// Loaded assets by cache view directory.
-    assets: Mutex<HashMap<PathBuf, Arc<Assets>>>,
+    /// Loaded assets by manifest digest ([`CacheView::digest`]).
+    assets: Mutex<HashMap<String, Arc<Assets>>>,
 }
 
 impl Shared {
     /// Shares `cache` between the connections of this process.
     pub fn new(cache: AssetCache) -> Self {
+        Self::forgetting(cache, false)
+    }
+
+    /// [`Shared::new`], wiping the scenes it fetched when the worker leaves the grid when
+    /// `forget_on_exit`.
+    pub fn forgetting(cache: AssetCache, forget_on_exit: bool) -> Self {
         Self {
             cache,
             fetch_lock: tokio::sync::Mutex::new(()),
+            forget: Forget::new(forget_on_exit),
             set_tables: Mutex::new(HashMap::new()),
             assets: Mutex::new(HashMap::new()),
         }
@@ -67,13 +76,28 @@ impl Shared {
         state: &SceneState,
     ) -> Result<Arc<Assets>, WorkerError> {
         let mut loaded = self.assets.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(assets) = loaded.get(view.dir()) {
+        if let Some(assets) = loaded.get(view.digest()) {
             if super::resolver::assets_cover(assets, state) {
                 return Ok(Arc::clone(assets));
             }
         }
         let assets = Arc::new(super::resolver::load_assets(view, state)?);
-        loaded.insert(view.dir().to_path_buf(), Arc::clone(&assets));
+        loaded.insert(view.digest().to_owned(), Arc::clone(&assets));
         Ok(assets)
+    }
+
+    /// Wipes the fetched scenes from the cache and memory under `--forget-on-exit`, once
+    /// no connection renders from them (checked under the fetch lock, so that none is
+    /// fetching meanwhile either).
+    pub async fn forget_if_idle(&self, why: &str) {
+        let _guard = self.fetch_lock.lock().await;
+        if !self.forget.idle() {
+            return;
+        }
+        let wiped = self.forget.wipe(&self.cache, why);
+        if !wiped.is_empty() {
+            // Loaded meshes and textures too: this process may go on and join again.
+            self.assets.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        }
     }
 }

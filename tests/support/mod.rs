@@ -168,9 +168,14 @@ pub struct Master {
 impl Master {
     /// Starts `gridlight master` on the test scene; `extra` adds options.
     pub fn start(dir: &Path, listen: &str, extra: &[&str]) -> Master {
+        Self::start_scene(dir, SCENE, listen, extra)
+    }
+
+    /// Starts `gridlight master` on the scene `text` (its assets go in `dir/assets/`).
+    pub fn start_scene(dir: &Path, text: &str, listen: &str, extra: &[&str]) -> Master {
         std::fs::create_dir_all(dir).unwrap();
         let scene = dir.join("scene.toml");
-        std::fs::write(&scene, SCENE).unwrap();
+        std::fs::write(&scene, text).unwrap();
         let out = dir.join("frames");
         let stats = dir.join("stats.jsonl");
         let sets = SETS.to_string();

@@ -1,7 +1,9 @@
 //! The announcer actor: tells the LAN a few times a second that this master is here.
 //!
 //! It sends one [`Announcement`] datagram every interval to a broadcast address
-//! (`discovery` has the format and why it carries nothing secret). A failed send (no
+//! (`discovery` has the format and why it carries nothing secret), each with a fresh
+//! clock reading and counter, tagged when the master has a secret (`discovery::tag`).
+//! A failed send (no
 //! route to the broadcast address, a full socket buffer) is logged once and retried at the
 //! next tick: discovery is a convenience and never stops a master.
 
@@ -10,6 +12,7 @@ use std::time::Duration;
 
 use actix::prelude::*;
 
+use crate::discovery::tag::{now_ms, Sender};
 use crate::discovery::{Announcement, DiscoveryError};
 use crate::supervision::{Guard, GuardedTimers, InjectPanic, Supervised, Supervision};
 
@@ -25,11 +28,11 @@ pub struct AnnounceConfig {
     pub interval: Duration,
 }
 
-/// The socket and the datagram it repeats.
+/// The socket and the announcements it sends.
 pub struct Announcer {
     socket: UdpSocket,
     to: SocketAddr,
-    datagram: Vec<u8>,
+    sender: Sender,
     interval: Duration,
     /// Sends that failed in a row (the first is logged as a warning, the rest quietly).
     failures: u64,
@@ -39,15 +42,16 @@ pub struct Announcer {
 }
 
 impl Announcer {
-    /// Binds a broadcast-capable UDP socket for `announcement`.
+    /// Binds a broadcast-capable UDP socket for `announcement`, tagged under `secret`.
     pub fn new(
         config: &AnnounceConfig,
         announcement: &Announcement,
+        secret: Option<&[u8]>,
         supervision: Supervision,
     ) -> std::io::Result<Self> {
-        let datagram = announcement
-            .encode()
-            .map_err(|e: DiscoveryError| std::io::Error::other(e.to_string()))?;
+        let mut sender = Sender::new(announcement.clone(), secret);
+        // Only the clock and the counter change: a datagram that fits now always will.
+        sender.next(u64::MAX).map_err(|e: DiscoveryError| std::io::Error::other(e.to_string()))?;
         let any: SocketAddr = match config.to {
             SocketAddr::V4(_) => (Ipv4Addr::UNSPECIFIED, 0).into(),
             SocketAddr::V6(_) => (Ipv6Addr::UNSPECIFIED, 0).into(),
@@ -59,7 +63,7 @@ impl Announcer {
         Ok(Self {
             socket,
             to: config.to,
-            datagram,
+            sender,
             interval,
             failures: 0,
             ticking: None,
@@ -90,7 +94,7 @@ impl Supervised for Announcer {
         self.ticking = Some(ctx.run_interval_guarded(self.interval, |act, _| act.announce()));
     }
 
-    /// Nothing to replace: it repeats one datagram.
+    /// Nothing to replace: the counter goes on.
     fn restart(&mut self, _: &mut Context<Self>) {}
 }
 
@@ -103,7 +107,14 @@ impl Handler<InjectPanic> for Announcer {
 
 impl Announcer {
     fn announce(&mut self) {
-        match self.socket.send_to(&self.datagram, self.to) {
+        let datagram = match self.sender.next(now_ms()) {
+            Ok(d) => d,
+            Err(e) => {
+                tracing::error!(cause = %e, "cannot encode this master's announcement");
+                return;
+            }
+        };
+        match self.socket.send_to(&datagram, self.to) {
             Ok(_) => {
                 if self.failures > 0 {
                     tracing::info!(to = %self.to, "announcements go out again");

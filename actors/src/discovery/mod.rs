@@ -4,16 +4,20 @@
 //! [`DISCOVERY_PORT`] (docs/design.md, decision 10); `gridlight worker` without `--master`
 //! listens there and joins the master it hears. A datagram is the 4 bytes
 //! [`MAGIC`], one byte [`ANNOUNCE_FORMAT`], then an [`Announcement`] as MessagePack
-//! (positional fields); at most [`MAX_ANNOUNCEMENT_LEN`] bytes in all, names at most
-//! [`MAX_NAME_LEN`] bytes. A change of the datagram's layout bumps the format byte; a
-//! change of the TCP protocol shows in `protocol`, so a worker tells "another gridlight
+//! (positional fields), then, from a master with a shared secret, a [`tag::TAG_LEN`]-byte
+//! tag over everything before it; at most [`MAX_ANNOUNCEMENT_LEN`] bytes in all, names at
+//! most [`MAX_NAME_LEN`] bytes. A change of the datagram's layout bumps the format byte;
+//! a change of the TCP protocol shows in `protocol`, so a worker tells "another gridlight
 //! version" apart from noise.
 //!
-//! Nothing in an announcement is secret (whether a secret is *required* is not): a
-//! forged announcement can only point a worker at a wrong address, as a wrong
-//! `--master` could; the shared secret remains the only thing that admits a worker.
+//! Nothing in an announcement is secret (whether a secret is *required* is not). Without
+//! a secret a forged announcement can point a worker at a wrong address, as a wrong
+//! `--master` could; a worker with a secret believes only announcements whose tag
+//! verifies, that are recent and not replayed ([`tag`]), and the connection's handshake
+//! proves the secret again in any case.
 
 pub mod announcer;
+pub mod tag;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::Duration;
@@ -27,7 +31,7 @@ pub const ANNOUNCE_INTERVAL: Duration = Duration::from_millis(300);
 /// First bytes of every announcement.
 pub const MAGIC: [u8; 4] = *b"GLMA";
 /// Layout version of the datagram (the byte after [`MAGIC`]).
-pub const ANNOUNCE_FORMAT: u8 = 1;
+pub const ANNOUNCE_FORMAT: u8 = 2;
 /// Largest datagram sent or accepted, in bytes.
 pub const MAX_ANNOUNCEMENT_LEN: usize = 512;
 /// Longest master or scene name carried, in bytes (longer ones are cut on a char boundary).
@@ -48,6 +52,21 @@ pub struct Announcement {
     pub scene: String,
     /// Whether workers must prove a shared secret (`--secret-file`).
     pub secret_required: bool,
+    /// The sender's clock when it sent this, in milliseconds since the Unix epoch.
+    pub sent_ms: u64,
+    /// A random id of the sending master process (its counter starts again with it).
+    pub boot: u64,
+    /// The announcement's number since the master process started (from 1).
+    pub seq: u64,
+}
+
+/// A datagram read as an announcement: the announcement, the bytes its tag covers, and
+/// the tag when there is one.
+#[derive(Debug)]
+pub struct Received<'a> {
+    pub announcement: Announcement,
+    signed: &'a [u8],
+    tag: Option<[u8; tag::TAG_LEN]>,
 }
 
 /// Why a datagram is not an announcement.
@@ -78,24 +97,32 @@ impl Announcement {
             name: truncate(name, MAX_NAME_LEN).to_owned(),
             scene: truncate(scene, MAX_NAME_LEN).to_owned(),
             secret_required,
+            sent_ms: 0,
+            boot: 0,
+            seq: 0,
         }
     }
 
-    /// The datagram: magic, format byte, MessagePack body.
-    pub fn encode(&self) -> Result<Vec<u8>, DiscoveryError> {
-        let mut out = Vec::with_capacity(64);
+    /// The datagram: magic, format byte, MessagePack body, and the tag under `key`.
+    pub fn encode(&self, key: Option<&tag::AnnounceKey>) -> Result<Vec<u8>, DiscoveryError> {
+        let mut out = Vec::with_capacity(64 + tag::TAG_LEN);
         out.extend_from_slice(&MAGIC);
         out.push(ANNOUNCE_FORMAT);
         rmp_serde::encode::write(&mut out, self)
             .map_err(|e| DiscoveryError::Malformed(e.to_string()))?;
+        if let Some(key) = key {
+            let tag = key.tag(&out);
+            out.extend_from_slice(&tag);
+        }
         if out.len() > MAX_ANNOUNCEMENT_LEN {
             return Err(DiscoveryError::TooLong(out.len()));
         }
         Ok(out)
     }
 
-    /// Reads a datagram, checking its size, magic, format and name lengths.
-    pub fn decode(bytes: &[u8]) -> Result<Self, DiscoveryError> {
+    /// Reads a datagram, checking its size, magic, format and name lengths; the tag, if
+    /// any, is checked by a [`tag::Verifier`].
+    pub fn decode(bytes: &[u8]) -> Result<Received<'_>, DiscoveryError> {
         if bytes.len() > MAX_ANNOUNCEMENT_LEN {
             return Err(DiscoveryError::TooLong(bytes.len()));
         }
@@ -106,8 +133,16 @@ impl Announcement {
         if format != ANNOUNCE_FORMAT {
             return Err(DiscoveryError::Format(format));
         }
-        let a: Announcement = rmp_serde::from_slice(&bytes[MAGIC.len() + 1..])
+        let mut body = std::io::Cursor::new(&bytes[MAGIC.len() + 1..]);
+        let a: Announcement = rmp_serde::decode::from_read(&mut body)
             .map_err(|e| DiscoveryError::Malformed(e.to_string()))?;
+        let signed = &bytes[..MAGIC.len() + 1 + body.position() as usize];
+        let tag = match &bytes[signed.len()..] {
+            [] => None,
+            rest => Some(<[u8; tag::TAG_LEN]>::try_from(rest).map_err(|_| {
+                DiscoveryError::Malformed(format!("{} bytes after the body", rest.len()))
+            })?),
+        };
         if a.name.len() > MAX_NAME_LEN || a.scene.len() > MAX_NAME_LEN {
             return Err(DiscoveryError::Malformed(format!(
                 "a name is longer than {MAX_NAME_LEN} bytes"
@@ -116,7 +151,7 @@ impl Announcement {
         if a.listen.port() == 0 {
             return Err(DiscoveryError::Malformed("listen port 0".into()));
         }
-        Ok(a)
+        Ok(Received { announcement: a, signed, tag })
     }
 
     /// Where to connect: the announced address, or for an unspecified IP the IP the
@@ -164,9 +199,14 @@ mod tests {
     #[test]
     fn an_announcement_round_trips_and_stays_small() {
         let a = sample();
-        let bytes = a.encode().unwrap();
+        let bytes = a.encode(None).unwrap();
         assert!(bytes.len() < 64, "{} bytes", bytes.len());
-        assert_eq!(Announcement::decode(&bytes).unwrap(), a);
+        assert_eq!(Announcement::decode(&bytes).unwrap().announcement, a);
+        let key = tag::AnnounceKey::derive(b"s");
+        let tagged = a.encode(Some(&key)).unwrap();
+        assert_eq!(tagged.len(), bytes.len() + tag::TAG_LEN);
+        let r = Announcement::decode(&tagged).unwrap();
+        assert_eq!((r.announcement, r.signed, r.tag.is_some()), (a, &bytes[..], true));
     }
 
     #[test]
@@ -174,30 +214,34 @@ mod tests {
         let long = "é".repeat(200);
         let a = Announcement::new(6, "[::1]:7840".parse().unwrap(), &long, &long, false);
         assert!(a.name.len() <= MAX_NAME_LEN && a.name.chars().all(|c| c == 'é'));
-        let bytes = a.encode().unwrap();
+        let bytes = a.encode(Some(&tag::AnnounceKey::derive(b"s"))).unwrap();
         assert!(bytes.len() <= MAX_ANNOUNCEMENT_LEN);
-        assert_eq!(Announcement::decode(&bytes).unwrap(), a);
+        assert_eq!(Announcement::decode(&bytes).unwrap().announcement, a);
     }
 
     #[test]
     fn foreign_oversized_and_future_datagrams_are_refused() {
-        assert_eq!(Announcement::decode(b"hello world"), Err(DiscoveryError::NotAnnouncement));
-        assert_eq!(Announcement::decode(b"GLM"), Err(DiscoveryError::NotAnnouncement));
-        let mut bytes = sample().encode().unwrap();
+        let err = |b: &[u8]| Announcement::decode(b).unwrap_err();
+        assert_eq!(err(b"hello world"), DiscoveryError::NotAnnouncement);
+        assert_eq!(err(b"GLM"), DiscoveryError::NotAnnouncement);
+        let mut bytes = sample().encode(None).unwrap();
         bytes[4] = ANNOUNCE_FORMAT + 1;
-        assert_eq!(Announcement::decode(&bytes), Err(DiscoveryError::Format(ANNOUNCE_FORMAT + 1)));
+        assert_eq!(err(&bytes), DiscoveryError::Format(ANNOUNCE_FORMAT + 1));
         let big = vec![0u8; MAX_ANNOUNCEMENT_LEN + 1];
-        assert_eq!(Announcement::decode(&big), Err(DiscoveryError::TooLong(big.len())));
-        let mut cut = sample().encode().unwrap();
+        assert_eq!(err(&big), DiscoveryError::TooLong(big.len()));
+        let mut cut = sample().encode(None).unwrap();
         cut.truncate(cut.len() - 3);
-        assert!(matches!(Announcement::decode(&cut), Err(DiscoveryError::Malformed(_))));
+        assert!(matches!(err(&cut), DiscoveryError::Malformed(_)));
+        let mut odd_tail = sample().encode(None).unwrap();
+        odd_tail.extend_from_slice(&[0; 5]);
+        assert!(matches!(err(&odd_tail), DiscoveryError::Malformed(_)));
     }
 
     #[test]
     fn a_name_over_the_limit_on_the_wire_is_refused() {
         let mut a = sample();
         a.name = "x".repeat(MAX_NAME_LEN + 1); // built by hand: `new` would cut it
-        let bytes = a.encode().unwrap();
+        let bytes = a.encode(None).unwrap();
         assert!(matches!(Announcement::decode(&bytes), Err(DiscoveryError::Malformed(_))));
     }
 

@@ -10,12 +10,14 @@
 //!   never accepts more results than it handed out jobs.
 //!
 //! It also keeps, per number of connected workers, how many frames were shown and their
-//! mean Q_t, so a run along the resource curve shows Q_t following the resources.
+//! mean Q_t, so a run along the resource curve shows Q_t following the resources; and the
+//! longest gaps with what happened around them (the harness's events: faults, undos,
+//! live-worker counts), so a long blank screen names its cause.
 //!
 //! [`CheckingSink`] is the master's frame sink in the harness; the harness tells the
 //! checker how many workers are alive ([`Checker::note_live`]).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -27,6 +29,13 @@ use gridlight_actors::stats::Counters;
 
 /// Violations kept verbatim; beyond this only the count grows (bounded memory).
 const MAX_KEPT: usize = 32;
+/// Gaps at least this long are kept with their events.
+const NOTED_GAP: Duration = Duration::from_millis(1000);
+/// The longest gaps kept.
+const MAX_GAPS: usize = 8;
+/// Events kept (older ones are forgotten) and how long before a gap they are shown.
+const MAX_EVENTS: usize = 256;
+const EVENTS_BEFORE: Duration = Duration::from_secs(3);
 
 /// The bounds a run is checked against.
 #[derive(Clone, Copy, Debug)]
@@ -59,6 +68,22 @@ pub struct Checker {
     /// Shown frames and the sum of their Q_t, by connected workers (bounded: one entry
     /// per worker count).
     q_by_workers: BTreeMap<u64, (u64, f64)>,
+    /// When the checker started (event times are given from it).
+    began: Instant,
+    /// The harness's latest events.
+    events: VecDeque<(Instant, String)>,
+    /// The longest gaps seen, longest first.
+    gaps: Vec<Gap>,
+}
+
+/// A gap between shown frames with a worker alive, and what happened around it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Gap {
+    /// Seconds from the start of the run to the start of the gap.
+    pub at_s: f64,
+    pub ms: u64,
+    /// The events from [`EVENTS_BEFORE`] before the gap to its end, `+S.SS s: what`.
+    pub events: Vec<String>,
 }
 
 /// Frames shown with a given number of workers connected, and their mean Q_t.
@@ -83,13 +108,55 @@ impl Checker {
             kept: Vec::new(),
             handed_twice_seen: 0,
             q_by_workers: BTreeMap::new(),
+            began: Instant::now(),
+            events: VecDeque::new(),
+            gaps: Vec::new(),
         }
+    }
+
+    /// Records something the harness did (a fault, an undo), for the gaps' reports.
+    pub fn event(&mut self, now: Instant, what: String) {
+        if self.events.len() == MAX_EVENTS {
+            self.events.pop_front();
+        }
+        self.events.push_back((now, what));
+    }
+
+    /// The longest gaps of at least [`NOTED_GAP`], longest first, with their events.
+    pub fn long_gaps(&self) -> &[Gap] {
+        &self.gaps
+    }
+
+    /// The gap running since `gap_start` ended at `now`: kept if it is among the longest.
+    fn gap_ended(&mut self, now: Instant) {
+        let Some(start) = self.gap_start else { return };
+        let len = now.saturating_duration_since(start);
+        if len < NOTED_GAP
+            || (self.gaps.len() == MAX_GAPS
+                && self.gaps.last().is_some_and(|g| g.ms >= len.as_millis() as u64))
+        {
+            return;
+        }
+        let since = |t: Instant| t.saturating_duration_since(self.began).as_secs_f64();
+        let events = self
+            .events
+            .iter()
+            .filter(|(t, _)| *t + EVENTS_BEFORE >= start && *t <= now)
+            .map(|(t, what)| format!("+{:.2} s: {what}", since(*t)))
+            .collect();
+        self.gaps.push(Gap { at_s: since(start), ms: len.as_millis() as u64, events });
+        self.gaps.sort_by_key(|g| std::cmp::Reverse(g.ms));
+        self.gaps.truncate(MAX_GAPS);
     }
 
     /// The number of live workers changed; the gap clock only runs while it is ≥ 1.
     pub fn note_live(&mut self, live: usize, now: Instant) {
         self.tick(now);
+        if live != self.live {
+            self.event(now, format!("{live} workers live"));
+        }
         if live == 0 {
+            self.gap_ended(now);
             self.gap_start = None;
         } else if self.live == 0 || self.gap_start.is_none() {
             self.gap_start = Some(now);
@@ -120,6 +187,7 @@ impl Checker {
     pub fn on_frame(&mut self, f: &ShownFrame, now: Instant) {
         self.tick(now);
         if self.live > 0 {
+            self.gap_ended(now);
             self.gap_start = Some(now);
             self.gap_reported = false;
         }
@@ -276,10 +344,17 @@ mod tests {
         c.tick(t + Duration::from_secs(10));
         assert_eq!(c.violations(), 0, "a gap without workers was counted");
         c.note_live(2, t + Duration::from_secs(10));
+        c.event(t + Duration::from_millis(10_500), "restart_master".into());
         c.tick(t + Duration::from_secs(11));
         c.tick(t + Duration::from_secs(12));
         assert_eq!(c.violations(), 1, "one long gap is one violation");
         assert!(c.longest_gap() >= Duration::from_secs(2));
+        c.on_frame(&shown(1, vec![Vec3::ONE], 1), t + Duration::from_secs(12));
+        let gaps = c.long_gaps();
+        assert_eq!(gaps.len(), 1, "{gaps:?}");
+        assert_eq!(gaps[0].ms, 2000);
+        assert!(gaps[0].events.iter().any(|e| e.ends_with("restart_master")), "{gaps:?}");
+        assert!(gaps[0].events.iter().any(|e| e.ends_with("2 workers live")), "{gaps:?}");
     }
 
     #[test]

@@ -70,6 +70,8 @@ impl Harness {
         let _ = w.child.kill();
         let _ = w.child.wait();
         self.fault("kill_worker");
+        let how = if w.proxied { "proxied" } else { "direct" };
+        lock(&self.checker).event(Instant::now(), format!("(the killed worker was {how})"));
         self.note_live();
         true
     }
@@ -160,6 +162,7 @@ impl Harness {
         self.fault("restart_master");
         self.report.master_restarts += 1;
         self.start_master()?;
+        lock(&self.checker).event(Instant::now(), "the new master listens".into());
         self.note_live();
         Ok(())
     }
@@ -203,11 +206,13 @@ impl Harness {
 
     /// Ends lasting faults: the link passes again and frozen workers are thawed.
     pub fn undo(&mut self) {
+        lock(&self.checker).event(Instant::now(), "undo (link passes, workers thawed)".into());
         self.link_fault(LinkMode::Pass);
         self.thaw_all();
     }
 
     fn fault(&mut self, kind: &str) {
         *self.report.faults.entry(kind.to_owned()).or_default() += 1;
+        lock(&self.checker).event(Instant::now(), kind.to_owned());
     }
 }

@@ -23,7 +23,7 @@ use gridlight_actors::state::{Camera, Geometry, Material, Object, Resolution, Sc
 use gridlight_actors::stats::Counters;
 use thiserror::Error;
 
-use super::invariants::{lock, Checker, CheckingSink, Limits, QSummary, SharedChecker};
+use super::invariants::{lock, Checker, CheckingSink, Gap, Limits, QSummary, SharedChecker};
 use super::proxy::{LinkMode, Proxy};
 use crate::worker::render::null_radiance;
 
@@ -92,6 +92,8 @@ pub struct HarnessReport {
     pub faults: BTreeMap<String, u64>,
     pub frames_shown: u64,
     pub longest_gap_ms: u64,
+    /// The longest gaps (over a second), with the faults and live counts around them.
+    pub long_gaps: Vec<Gap>,
     pub dropped: BTreeMap<String, u64>,
     pub rejected: BTreeMap<String, u64>,
     pub master_exits: u64,
@@ -249,6 +251,7 @@ impl Harness {
         let ck = lock(&self.checker);
         r.frames_shown = ck.frames_shown();
         r.longest_gap_ms = ck.longest_gap().as_millis() as u64;
+        r.long_gaps = ck.long_gaps().to_vec();
         r.invariant_violations = ck.violations();
         r.violations = ck.violation_texts().to_vec();
         r.dropped = t.dropped;
