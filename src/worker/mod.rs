@@ -276,7 +276,7 @@ pub(crate) async fn connection_loop(
         if progress.welcomed
             && shared.forget.connection_ended()
             && !cancel.is_cancelled()
-            && !matches!(outcome, Ok(SessionEnd::Shutdown))
+            && !matches!(outcome, Ok(LinkEnd::Shutdown))
         {
             shared.forget_if_idle("every connection to the master is gone").await;
         }
