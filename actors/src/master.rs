@@ -307,10 +307,10 @@ fn wire(
     .with_stale_discard(config.discard_stale_jobs)
     .with_faults(faults.clone())
     .start();
-    let scene =
-        SceneHolder::new(state, scheduler.clone().recipient(), counters.clone(), config.restart)
-            .with_faults(faults.clone())
-            .start();
+    let (changes_to, edits_to) = (scheduler.clone().recipient(), presenter.clone().recipient());
+    let scene = SceneHolder::new(state, changes_to, edits_to, counters.clone(), config.restart)
+        .with_faults(faults.clone())
+        .start();
 
     let conn_config = Arc::new(ConnectionConfig {
         secret: config.secret,

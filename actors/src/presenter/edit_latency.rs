@@ -1,15 +1,14 @@
 //! Edit-to-display latency: when each edit happened, until the first shown frame whose
 //! scene state includes it.
 //!
-//! The scene holder logs every edit it applies with the version it made and the instant
-//! of the edit (the input event for the window's edits, the scripted time for scripts);
-//! the display takes, for each shown frame, the edits its version includes and not yet
-//! shown. Versions only grow, so a frame of version `v` includes every edit `≤ v`. The
+//! The scene holder tells the presenter of every edit it applies ([`EditApplied`](super::EditApplied): the
+//! version it made and the instant of the edit, the input event for the window's edits,
+//! the scripted time for scripts); the presenter keeps them in its [`EditLog`] and takes,
+//! for each shown frame, the edits its version includes and not yet shown. Versions only grow, so a frame of version `v` includes every edit `≤ v`. The
 //! latency itself is stamped by whoever really shows the frame (the headless writer after
 //! composing it, the window when it draws it): [`crate::presenter::stats::FrameStats::stamp_edit_latency`].
 
 use std::collections::VecDeque;
-use std::sync::Mutex;
 use std::time::Instant;
 
 use crate::scene::state::StateVersion;
@@ -18,31 +17,25 @@ use crate::scene::state::StateVersion;
 /// a master whose display stalls cannot grow without bound.
 pub const MAX_PENDING_EDITS: usize = 4096;
 
-/// Edits applied and not yet shown, in version order.
+/// Edits applied and not yet shown, in version order (the presenter's own).
 #[derive(Debug, Default)]
 pub struct EditLog {
-    pending: Mutex<VecDeque<(StateVersion, Instant)>>,
+    pending: VecDeque<(StateVersion, Instant)>,
 }
 
 impl EditLog {
     /// The edit made `version`; it happened at `at`.
-    pub fn applied(&self, version: StateVersion, at: Instant) {
-        let mut p = self.lock();
-        if p.len() == MAX_PENDING_EDITS {
-            p.pop_front();
+    pub fn applied(&mut self, version: StateVersion, at: Instant) {
+        if self.pending.len() == MAX_PENDING_EDITS {
+            self.pending.pop_front();
         }
-        p.push_back((version, at));
+        self.pending.push_back((version, at));
     }
 
     /// A frame of `version` is shown: the instants of the edits it shows first.
-    pub fn shown(&self, version: StateVersion) -> Vec<Instant> {
-        let mut p = self.lock();
-        let n = p.iter().take_while(|(v, _)| *v <= version).count();
-        p.drain(..n).map(|(_, at)| at).collect()
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, VecDeque<(StateVersion, Instant)>> {
-        self.pending.lock().unwrap_or_else(|p| p.into_inner())
+    pub fn shown(&mut self, version: StateVersion) -> Vec<Instant> {
+        let n = self.pending.iter().take_while(|(v, _)| *v <= version).count();
+        self.pending.drain(..n).map(|(_, at)| at).collect()
     }
 }
 
@@ -53,7 +46,7 @@ mod tests {
 
     #[test]
     fn a_frame_shows_every_edit_up_to_its_version_once() {
-        let log = EditLog::default();
+        let mut log = EditLog::default();
         let t0 = Instant::now();
         let at = |ms| t0 + Duration::from_millis(ms);
         log.applied(2, at(0));
@@ -67,7 +60,7 @@ mod tests {
 
     #[test]
     fn the_log_is_bounded() {
-        let log = EditLog::default();
+        let mut log = EditLog::default();
         let t0 = Instant::now();
         for v in 0..(MAX_PENDING_EDITS as u64 + 10) {
             log.applied(v, t0);

@@ -20,9 +20,10 @@ use actix::prelude::*;
 use crate::assembler::frame_table::ClosedFrame;
 use crate::assembler::SinkFreed;
 use crate::connection::workers::WorkerTable;
+use crate::presenter::edit_latency::EditLog;
 use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, Preparer, SinkOutcome};
 use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
-use crate::scene::state::SceneState;
+use crate::scene::state::{SceneState, StateVersion};
 use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
 use crate::wire::protocol::FrameNo;
 
@@ -61,6 +62,15 @@ pub struct FrameSkipped {
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct PrepareState(pub Arc<SceneState>);
+
+/// To the presenter: the scene holder applied the edit that made `version`; the edit
+/// happened at `at` (for the edit-to-display latency of the first frame that shows it).
+#[derive(Message, Clone, Copy, Debug)]
+#[rtype(result = "()")]
+pub struct EditApplied {
+    pub version: StateVersion,
+    pub at: Instant,
+}
 
 /// The sink finished one frame (or failed).
 #[derive(Message)]
@@ -122,6 +132,8 @@ pub struct Presenter {
     /// The connected workers: the paused ones are listed in each frame's statistics.
     workers: Arc<WorkerTable>,
     report: Arc<Report>,
+    /// Edits applied and not yet shown.
+    edits: EditLog,
     supervision: Supervision,
     finished: bool,
     /// When the presenter was made (the master's start), for `shown_at_ms`.
@@ -159,6 +171,7 @@ impl Presenter {
             counters,
             workers,
             report,
+            edits: EditLog::default(),
             supervision,
             finished: false,
             started: Instant::now(),
@@ -256,6 +269,13 @@ impl Handler<Shutdown> for Presenter {
     }
 }
 
+impl Handler<EditApplied> for Presenter {
+    type Result = ();
+    fn handle(&mut self, msg: EditApplied, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |p, _| p.edits.applied(msg.version, msg.at));
+    }
+}
+
 impl Handler<InjectPanic> for Presenter {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
@@ -301,7 +321,7 @@ impl Presenter {
             bytes_out: Counters::get(&c.bytes_out),
             shown: self.shown,
             accumulated_frames,
-            edits_at: c.edits.shown(version),
+            edits_at: self.edits.shown(version),
             edit_latency_ms: Vec::new(),
             results_used: used,
             results_returned: accepted + late,

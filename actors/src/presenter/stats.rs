@@ -60,8 +60,6 @@ pub struct Counters {
     /// Connections ended on an error, by kind
     /// ([`RejectionKind::as_str`]); bounded: the kinds are fixed.
     pub rejected_by_kind: Mutex<BTreeMap<&'static str, u64>>,
-    /// Edits not yet shown, for the edit-to-display latency.
-    pub edits: crate::presenter::edit_latency::EditLog,
 }
 
 impl Counters {

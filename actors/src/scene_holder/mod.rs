@@ -1,6 +1,7 @@
 //! The scene-state holder actor: owns the current [`SceneState`], applies edits (live
 //! or from an interaction script), bumps the version on every change and tells the
-//! scheduler. It is the only place a [`StateVersion`] is created.
+//! scheduler, and the presenter when the edit happened (for the edit-to-display
+//! latency). It is the only place a [`StateVersion`] is created.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -8,6 +9,7 @@ use std::time::{Duration, Instant};
 use actix::prelude::*;
 
 use crate::presenter::stats::Counters;
+use crate::presenter::EditApplied;
 use crate::scene::edit::{apply, Edit, EditError};
 use crate::scene::state::{SceneState, StateVersion};
 use crate::scheduler::StateChanged;
@@ -42,7 +44,8 @@ pub struct CurrentState;
 pub struct SceneHolder {
     state: Arc<SceneState>,
     changes_to: Recipient<StateChanged>,
-    counters: Arc<Counters>,
+    /// The presenter, which times each edit until a frame shows it.
+    edits_to: Recipient<EditApplied>,
     supervision: Supervision,
 }
 
@@ -50,11 +53,12 @@ impl SceneHolder {
     pub fn new(
         state: Arc<SceneState>,
         changes_to: Recipient<StateChanged>,
+        edits_to: Recipient<EditApplied>,
         counters: Arc<Counters>,
         policy: RestartPolicy,
     ) -> Self {
-        let supervision = Supervision::restarting(ActorKind::SceneHolder, policy, counters.clone());
-        Self { state, changes_to, counters, supervision }
+        let supervision = Supervision::restarting(ActorKind::SceneHolder, policy, counters);
+        Self { state, changes_to, edits_to, supervision }
     }
 
     /// Applies an edit that happened at `at` (logged for the edit-to-display latency).
@@ -64,7 +68,7 @@ impl SceneHolder {
         next.version = self.state.version + 1;
         let version = next.version;
         self.state = Arc::new(next);
-        self.counters.edits.applied(version, at);
+        self.edits_to.do_send(EditApplied { version, at });
         self.changes_to.do_send(StateChanged(self.state.clone()));
         Ok(version)
     }
