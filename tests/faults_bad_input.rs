@@ -23,11 +23,11 @@ use glam::Vec3;
 use gridlight::scene::{manifest, AssetSearchPath};
 use gridlight_actors::asset_store::AssetStore;
 use gridlight_actors::codec::to_frame;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{start, MasterConfig, MasterHandle};
 use gridlight_actors::packing::pack;
 use gridlight_actors::protocol::*;
 use gridlight_actors::state::{Geometry, StateVersion};
-use gridlight_actors::stats::Counters;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 

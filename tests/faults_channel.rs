@@ -32,9 +32,9 @@ use gridlight::worker::render::null_radiance;
 use gridlight_actors::asset_store::AssetStore;
 use gridlight_actors::channel::TAG_LEN;
 use gridlight_actors::codec::{to_frame, MasterCodec, WorkerCodec};
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{start, MasterHandle};
 use gridlight_actors::protocol::{MasterMsg, PackedRadiance, WorkerMsg};
-use gridlight_actors::stats::Counters;
 use support::{eventually, Proc, PATIENCE};
 use tokio_util::codec::Decoder;
 

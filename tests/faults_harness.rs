@@ -18,8 +18,8 @@ use std::time::{Duration, Instant};
 use gridlight::tools::faults::curve::live_workers;
 use gridlight::tools::faults::harness::{Fault, Harness, HarnessConfig};
 use gridlight::tools::faults::proxy::LinkMode;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::Pacing;
-use gridlight_actors::stats::Counters;
 
 const WORKERS: usize = 3;
 /// Longest wait for a recovery (frames, reconnections) on a loaded machine.

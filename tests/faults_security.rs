@@ -18,9 +18,9 @@ use gridlight::tools::faults::proxy::Proxy;
 use gridlight::worker::render::null_radiance;
 use gridlight::worker::{run_until, Priority, RendererKind, WhenIdle, WorkerConfig};
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::start;
 use gridlight_actors::protocol::*;
-use gridlight_actors::stats::Counters;
 use tokio_util::sync::CancellationToken;
 
 const SECRET: &[u8] = b"correct horse battery staple";

@@ -10,17 +10,21 @@
 //!   integrity, packing, counted sockets). [`scene`]: the values it carries (scene state,
 //!   edits, scripts, assets).
 //! - One folder per actor, the actor in its `mod.rs` and its pure partners beside it:
-//!   [`listener`], [`connection`] (+ the worker table), [`scheduler`] (+ job queue,
-//!   hand-out plan, pixel sets), [`assembler`] (a frame's whole life: + frame table,
-//!   pacer, wait heuristic, the rule around edits, accumulation, packed frames),
-//!   [`presenter`] (shown frames to the sink: + sink, stats, edit latency),
-//!   [`scene_holder`], [`discovery`] (+ the announcer actor); [`supervision`] is the
-//!   restart policy they share.
+//!   [`listener`], [`connection`] (+ its protocol state), [`scheduler`] (+ job queue,
+//!   hand-out plan), [`assembler`] (a frame's whole life: + frame table, pacer, wait
+//!   heuristic, the rule around edits, accumulation), [`presenter`] (shown frames to the
+//!   sink: + sink, stats, edit latency), [`scene_holder`], [`discovery`] (+ the announcer
+//!   actor); [`supervision`] is the restart policy they share.
+//! - [`shared`]: the values several actors share (pixel sets, jobs, pacing, packed
+//!   frames, the worker table, the counters); [`messages`]: every message between the
+//!   actors, by topic.
 //! - Entry point: [`master::start`] → [`master::MasterHandle`].
 //!
 //! # Where messages live
-//! An actor message lives in the module of the actor that *handles* it; senders import
-//! it from there. Wire messages live in [`wire::protocol`].
+//! Every message between actors, and from the master's handle to an actor, lives in
+//! [`messages`]; an actor's messages to itself stay in its folder. Wire messages live in
+//! [`wire::protocol`]. An actor folder imports no other actor's folder (the listener
+//! alone makes connection actors): `actors/tests/layout.rs`.
 //!
 //! # The result path runs one way
 //! Scheduler → (connection → worker → connection) → assembler → presenter → sink thread.
@@ -41,16 +45,18 @@ pub mod connection;
 pub mod discovery;
 pub mod listener;
 pub mod master;
+pub mod messages;
 pub mod presenter;
 pub mod scene;
 pub mod scene_holder;
 pub mod scheduler;
+pub mod shared;
 pub mod supervision;
 pub mod wire;
 
-pub use assembler::{accumulation, packed_frame, wait_heuristic};
+pub use assembler::{accumulation, wait_heuristic};
 pub use discovery::announcer;
 pub use presenter::{sink, stats};
 pub use scene::{asset_store, edit, script, state};
-pub use scheduler::sets;
+pub use shared::{counters, pacing, packed_frame, sets, workers};
 pub use wire::{auth, channel, channel_codec, codec, integrity, packing, protocol, rejection};

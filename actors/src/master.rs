@@ -22,31 +22,35 @@ use std::time::{Duration, Instant};
 
 use actix::prelude::*;
 
-use crate::assembler::{Assembler, AssemblerConfig, AssemblerLinks, SetPacing};
-use crate::connection::workers::WorkerTable;
+use crate::assembler::{Assembler, AssemblerConfig, AssemblerLinks};
 use crate::connection::{ConnectionConfig, ConnectionLinks};
 use crate::discovery::announcer::{AnnounceConfig, Announcer};
 use crate::discovery::Announcement;
-use crate::listener::{KillConnection, ListConnections, Listener, PanicConnection};
+use crate::listener::Listener;
+use crate::messages::{
+    ApplyEdit, CurrentState, EditMade, KillConnection, ListConnections, PacingChanged,
+    PanicConnection, PlayScript, SetPacing, Shutdown,
+};
 use crate::presenter::sink::FrameSink;
-use crate::presenter::stats::Counters;
-use crate::presenter::{Presenter, PresenterConfig, Report, ReportState, Shutdown};
+use crate::presenter::{Presenter, PresenterConfig, Report, ReportState};
 use crate::scene::asset_store::AssetStore;
 use crate::scene::edit::{Edit, EditError};
 use crate::scene::state::{SceneState, StateVersion};
-use crate::scene_holder::{ApplyEdit, CurrentState, EditMade, PlayScript, SceneHolder};
-use crate::scheduler::sets::SetTable;
-use crate::scheduler::{PacingChanged, Scheduler, SchedulerLinks};
+use crate::scene_holder::SceneHolder;
+use crate::scheduler::{Scheduler, SchedulerLinks};
+use crate::shared::counters::Counters;
+use crate::shared::sets::SetTable;
+use crate::shared::workers::WorkerTable;
 use crate::supervision::{
     InjectPanic, PanicInjection, PanicPlan, PeerPolicy, RestartPolicy, Supervised, Supervision,
 };
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{SetsConfig, HEARTBEAT_INTERVAL, PEER_TIMEOUT, PROTOCOL_VERSION};
 
-pub use crate::assembler::wait_heuristic::{Heuristic, Pacing, PacingError};
 pub use crate::presenter::sink::{ShownFrame, SinkError};
 pub use crate::presenter::stats::FrameStats;
 pub use crate::presenter::ReportState as MasterReport;
+pub use crate::shared::pacing::{Heuristic, Pacing, PacingError};
 pub use crate::supervision::ActorKind;
 
 /// Default number of jobs a worker may hold (docs/design.md, decision 7).
@@ -359,7 +363,7 @@ impl MasterHandle {
     }
 
     /// The workers connected now, with their rates.
-    pub fn workers(&self) -> Vec<crate::connection::workers::WorkerInfo> {
+    pub fn workers(&self) -> Vec<crate::shared::workers::WorkerInfo> {
         self.workers.list()
     }
 

@@ -13,12 +13,12 @@ use gridlight_actors::channel::{initiate, Psk};
 use gridlight_actors::channel_codec::{KeySlot, WorkerChannelCodec};
 use gridlight_actors::integrity::ResultKey;
 use gridlight_actors::master::{MasterConfig, ShownFrame, SinkError};
+use gridlight_actors::pacing::{Heuristic, Pacing};
 use gridlight_actors::packing::pack;
 use gridlight_actors::protocol::*;
 use gridlight_actors::sets::SetTable;
 use gridlight_actors::sink::FrameSink;
 use gridlight_actors::state::*;
-use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
 use tokio_util::codec::{Decoder, Encoder};
 
 pub const W: u32 = 32;

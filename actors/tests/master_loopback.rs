@@ -12,10 +12,10 @@ use std::time::Duration;
 use common::*;
 use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::master::{start, ActorKind, MasterHandle};
 use gridlight_actors::protocol::*;
-use gridlight_actors::stats::Counters;
 
 fn master() -> (MasterHandle, std::sync::mpsc::Receiver<gridlight_actors::master::ShownFrame>) {
     let (sink, rx) = collect_sink();

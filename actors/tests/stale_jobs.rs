@@ -17,11 +17,11 @@ use std::time::Duration;
 use common::*;
 use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::master::{start, MasterHandle, ShownFrame};
 use gridlight_actors::protocol::*;
 use gridlight_actors::state::StateVersion;
-use gridlight_actors::stats::Counters;
 
 /// Long enough that a display waiting for a held job (I_max × the last frame time) would
 /// outlast the test's patience many times over: a frame shown in time was not waited for.

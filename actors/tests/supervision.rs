@@ -21,11 +21,11 @@ use common::*;
 use glam::Vec3;
 use gridlight_actors::announcer::AnnounceConfig;
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::discovery::Announcement;
 use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::master::{start, MasterConfig, MasterHandle};
 use gridlight_actors::protocol::*;
-use gridlight_actors::stats::Counters;
 use gridlight_actors::supervision::{PanicInjection, PeerPolicy};
 
 /// A master with these `--inject-panic` values (and announcing to `announce_to`).
@@ -137,7 +137,7 @@ fn a_panic_in_started_restarts_each_actor_and_the_master_keeps_serving() {
 fn a_panic_in_a_timer_restarts_each_actor_that_has_one() {
     // The frame assembler's heuristic deadline: at a fixed rate every frame waits on it.
     let mut c = config();
-    c.pacing = gridlight_actors::wait_heuristic::Pacing::FixedFps(50.0);
+    c.pacing = gridlight_actors::pacing::Pacing::FixedFps(50.0);
     c.inject_panics = vec!["assembler:timer:1".parse().expect("injection")];
     serving(start_with(c), |m| keeps_serving(m, "frame assembler", 1));
 

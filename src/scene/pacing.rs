@@ -1,7 +1,7 @@
 //! The master's pacing (paper §4.3: the wait heuristic or a fixed frame rate) from the
 //! scene file's `[render.display]` and the command line, field by field.
 
-use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
+use gridlight_actors::pacing::{Heuristic, Pacing};
 
 use super::DisplayDesc;
 

@@ -12,7 +12,7 @@ use super::camera::CameraMode;
 use super::edits::{join_power, split_power, WindowEdit};
 use super::status::{human_bytes, StatusView};
 use crate::master::view::View;
-use gridlight_actors::wait_heuristic::{Heuristic, Pacing};
+use gridlight_actors::pacing::{Heuristic, Pacing};
 
 /// Pacing of frames as the panel edits it (paper §4.3).
 #[derive(Clone, Copy, Debug, PartialEq)]

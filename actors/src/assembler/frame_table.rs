@@ -15,9 +15,9 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
-use crate::assembler::packed_frame::PackedFrame;
 use crate::scene::state::{SceneState, StateVersion};
-use crate::scheduler::sets::SetTable;
+use crate::shared::packed_frame::{ClosedFrame, PackedFrame};
+use crate::shared::sets::SetTable;
 use crate::wire::protocol::{ConnId, FrameNo, PackedRadiance, SetNo};
 
 /// What happened to one result.
@@ -31,19 +31,6 @@ pub enum Admission {
     Unknown,
     /// Its set already has a result from another connection: the set was handed out twice.
     HandedTwice,
-}
-
-/// A frame taken out of the table for display.
-#[derive(Debug)]
-pub struct ClosedFrame {
-    pub frame: FrameNo,
-    pub state: Arc<SceneState>,
-    /// The accepted results.
-    pub results: PackedFrame,
-    /// Per set, the connection whose result was accepted (`None`: no result).
-    pub owners: Vec<Option<ConnId>>,
-    pub back: u32,
-    pub total: u32,
 }
 
 /// How far an open frame is, for the wait heuristic.

@@ -14,7 +14,6 @@ pub mod accumulation;
 pub mod frame_table;
 pub mod new_view;
 pub mod pacer;
-pub mod packed_frame;
 pub mod wait_heuristic;
 
 use std::sync::Arc;
@@ -25,75 +24,19 @@ use actix::prelude::*;
 use crate::assembler::accumulation::Accumulation;
 use crate::assembler::frame_table::{Admission, FrameTable};
 use crate::assembler::pacer::{Judgement, Pacer};
-use crate::assembler::wait_heuristic::{Decision, Pacing, PacingError};
-use crate::connection::workers::WorkerTable;
-use crate::presenter::stats::Counters;
-use crate::presenter::{FrameShown, FrameSkipped, PrepareState};
-use crate::scene::state::SceneState;
-use crate::scheduler::sets::SetTable;
-use crate::scheduler::FrameDisplayed;
+use crate::assembler::wait_heuristic::Decision;
+use crate::messages::{
+    FrameDisplayed, FrameScheduled, FrameShown, FrameSkipped, FrameStarted, FramesAbandoned,
+    FramesOutdated, PrepareState, ResultArrived, SetPacing, SinkFreed,
+};
+use crate::shared::counters::Counters;
+use crate::shared::pacing::{Pacing, PacingError};
+use crate::shared::sets::SetTable;
+use crate::shared::workers::WorkerTable;
 use crate::supervision::{
     ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
 };
-use crate::wire::protocol::{ConnId, FrameNo, JobResult};
-
-/// To the assembler: all sets of `frame` were queued with `state`. `displayed_to` is where
-/// its display is told (the scheduler's own address: replies travel with the request, so
-/// the actors are wired in one direction).
-#[derive(Message, Clone)]
-#[rtype(result = "()")]
-pub struct FrameScheduled {
-    pub frame: FrameNo,
-    pub state: Arc<SceneState>,
-    pub displayed_to: Recipient<FrameDisplayed>,
-}
-
-/// To the assembler: the first job of `frame` was handed out (the start of its
-/// computation, from which the wait heuristic measures its time).
-#[derive(Message, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct FrameStarted {
-    pub frame: FrameNo,
-}
-
-/// A connection received the answer to a job it holds, checked by its protocol state.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct ResultArrived {
-    pub conn: ConnId,
-    pub result: JobResult,
-}
-
-/// To the assembler: frames before `before` were made with an outdated scene state; their
-/// queued jobs were discarded, so only results already held by workers can still come.
-/// Such a frame is shown at once with what it has (or skipped when empty) instead of
-/// waiting for them ([`new_view`]).
-#[derive(Message, Debug, Clone)]
-#[rtype(result = "()")]
-pub struct FramesOutdated {
-    pub before: FrameNo,
-    /// The new state, which the frames from `before` on have.
-    pub state: Arc<SceneState>,
-}
-
-/// To the assembler: frames before `before` lost their queued jobs (the scheduler
-/// restarted) and will get no results beyond those already handed out. Waiting for them
-/// says nothing about the workers' speed, so they are decided at once.
-#[derive(Message, Debug, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct FramesAbandoned {
-    pub before: FrameNo,
-}
-
-/// Changes how frames are paced from now on (the window's sliders).
-#[derive(Message)]
-#[rtype(result = "Result<(), PacingError>")]
-pub struct SetPacing(pub Pacing);
-
-/// The sink is done with a frame handed over with [`FrameShown`] (or never took it).
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct SinkFreed;
+use crate::wire::protocol::{FrameNo, JobResult};
 
 /// How the assembler paces and how far ahead of the sink it may be.
 #[derive(Clone, Copy, Debug)]

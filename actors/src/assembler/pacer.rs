@@ -16,7 +16,8 @@ use std::time::{Duration, Instant};
 
 use crate::assembler::frame_table::Progress;
 use crate::assembler::new_view::NewView;
-use crate::assembler::wait_heuristic::{decide, interaction, quality, Decision, Pacing};
+use crate::assembler::wait_heuristic::{decide, interaction, quality, Decision};
+use crate::shared::pacing::Pacing;
 use crate::wire::protocol::FrameNo;
 
 /// The decision about one frame and what it was based on.
@@ -128,7 +129,7 @@ impl Pacer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::assembler::wait_heuristic::Heuristic;
+    use crate::shared::pacing::Heuristic;
 
     const LAST: Duration = Duration::from_millis(100);
 

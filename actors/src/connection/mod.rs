@@ -16,7 +16,6 @@
 //! reconnection with a fresh actor unless the worker is backed off.
 
 pub mod protocol_state;
-pub mod workers;
 
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
@@ -26,13 +25,13 @@ use actix::io::{FramedWrite, WriteHandler};
 use actix::prelude::*;
 use tokio::net::tcp::OwnedWriteHalf;
 
-use crate::assembler::ResultArrived;
-use crate::listener::ConnectionEnded;
-use crate::presenter::stats::Counters;
+use crate::messages::{
+    ConnectionEnded, JobAnswered, JobsAssigned, Kill, ResultArrived, WorkerLeft, WorkerReady,
+};
 use crate::scene::asset_store::AssetStore;
-use crate::scheduler::job_queue::Job;
-use crate::scheduler::sets::SetTable;
-use crate::scheduler::{JobAnswered, WorkerLeft, WorkerReady};
+use crate::shared::counters::Counters;
+use crate::shared::sets::SetTable;
+use crate::shared::workers::WorkerTable;
 use crate::supervision::{
     ActorKind, Guard, GuardedTimers, InjectPanic, PeerBackoff, Supervised, Supervision,
 };
@@ -42,20 +41,9 @@ use crate::wire::counted_io::CountedWrite;
 use crate::wire::protocol::{ConnId, MasterMsg, WorkerMsg};
 use crate::wire::rejection::{Rejection, RejectionKind};
 use protocol_state::{Action, ProtocolState};
-use workers::WorkerTable;
 
 /// How long a rejected peer gets to read its `Rejected` before the socket is dropped.
 const CLOSE_GRACE: Duration = Duration::from_secs(2);
-
-/// To a connection: jobs handed to it.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct JobsAssigned(pub Vec<Job>);
-
-/// Test hook: end this connection abruptly, as a crash would (no `Rejected`).
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct Kill;
 
 /// What every connection shares.
 pub struct ConnectionConfig {

@@ -20,8 +20,9 @@ use tokio::io::AsyncWriteExt;
 use tokio::net::{TcpListener, TcpStream};
 use tokio_util::codec::FramedRead;
 
-use crate::connection::{Connection, ConnectionConfig, ConnectionLinks, Kill, Outbox};
-use crate::presenter::stats::Counters;
+use crate::connection::{Connection, ConnectionConfig, ConnectionLinks, Outbox};
+use crate::messages::{ConnectionEnded, Kill, KillConnection, ListConnections, PanicConnection};
+use crate::shared::counters::Counters;
 use crate::supervision::{
     ActorKind, Guard, InjectPanic, PeerBackoff, PeerPolicy, RestartPolicy, Supervised, Supervision,
 };
@@ -32,36 +33,10 @@ use crate::wire::protocol::ConnId;
 use crate::wire::protocol::MasterMsg;
 use crate::wire::rejection::Rejection;
 
-/// To the listener: this connection ended; `failed` when it ended on an error.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct ConnectionEnded {
-    pub conn: ConnId,
-    pub failed: bool,
-    /// The worker's name from its `Hello`: the per-peer back-off's key (`None` before
-    /// the `Hello`, and for a connection that back-off refused).
-    pub worker: Option<String>,
-}
-
 /// Internal: one accepted socket (or accept error).
 #[derive(Message)]
 #[rtype(result = "()")]
 struct Accepted(std::io::Result<(TcpStream, SocketAddr)>);
-
-/// Test hook: end connection `conn` abruptly. Answers whether it existed.
-#[derive(Message)]
-#[rtype(result = "bool")]
-pub struct KillConnection(pub ConnId);
-
-/// Test hook: make connection `conn` panic inside a handler. Answers whether it existed.
-#[derive(Message)]
-#[rtype(result = "bool")]
-pub struct PanicConnection(pub ConnId);
-
-/// The ids of the live connections, in id order.
-#[derive(Message)]
-#[rtype(result = "Vec<ConnId>")]
-pub struct ListConnections;
 
 /// The accepting socket and the live connections.
 pub struct Listener {

@@ -13,19 +13,17 @@ pub mod stats;
 use std::sync::mpsc::{SyncSender, TrySendError};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use actix::prelude::*;
 
-use crate::assembler::frame_table::ClosedFrame;
-use crate::assembler::SinkFreed;
-use crate::connection::workers::WorkerTable;
+use crate::messages::{EditApplied, FrameShown, FrameSkipped, PrepareState, Shutdown, SinkFreed};
 use crate::presenter::edit_latency::EditLog;
 use crate::presenter::sink::{spawn_sink, FrameSink, PackedShownFrame, Preparer, SinkOutcome};
-use crate::presenter::stats::{useful_fraction, Counters, FrameStats};
-use crate::scene::state::{SceneState, StateVersion};
+use crate::presenter::stats::{useful_fraction, FrameStats};
+use crate::shared::counters::Counters;
+use crate::shared::workers::WorkerTable;
 use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
-use crate::wire::protocol::FrameNo;
 
 /// Frames handed to the sink thread and not yet shown, at most, by default: two keep a
 /// fast sink busy. An interactive master uses one (`MasterConfig::sink_in_flight`): a
@@ -33,54 +31,10 @@ use crate::wire::protocol::FrameNo;
 /// it is shown, so it shows an older view than the one decided when the sink is free.
 pub const DEFAULT_SINK_IN_FLIGHT: usize = 2;
 
-/// To the presenter: the assembler shows this frame.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct FrameShown {
-    pub closed: ClosedFrame,
-    /// Q_t and I_t when it was decided.
-    pub q: f64,
-    pub i: f64,
-    /// Time from the start of the frame to its decision.
-    pub wait: Duration,
-    /// Shown frames of its scene state, this one included (1: accumulation starts over).
-    pub accumulated_frames: u32,
-    /// Told when the sink is done with it.
-    pub freed_to: Recipient<SinkFreed>,
-}
-
-/// To the presenter: the assembler skipped `frame` (Q_min not reached by I_max, or
-/// passed over), with `back` results that are never used.
-#[derive(Message, Clone, Copy, Debug)]
-#[rtype(result = "()")]
-pub struct FrameSkipped {
-    pub frame: FrameNo,
-    pub back: u32,
-}
-
-/// To the presenter: a new scene state; the sink may prepare for it (G-buffer ahead).
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct PrepareState(pub Arc<SceneState>);
-
-/// To the presenter: the scene holder applied the edit that made `version`; the edit
-/// happened at `at` (for the edit-to-display latency of the first frame that shows it).
-#[derive(Message, Clone, Copy, Debug)]
-#[rtype(result = "()")]
-pub struct EditApplied {
-    pub version: StateVersion,
-    pub at: Instant,
-}
-
 /// The sink finished one frame (or failed).
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct SinkDone(pub SinkOutcome);
-
-/// Stop showing frames, let the sink finish, then stop the actor system.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct Shutdown;
 
 /// What the master's handle can see of the presenter, shared with it.
 #[derive(Debug, Default)]

@@ -12,10 +12,10 @@ use std::thread::JoinHandle;
 use glam::Vec3;
 use thiserror::Error;
 
-use crate::assembler::packed_frame::PackedFrame;
 use crate::presenter::stats::FrameStats;
 use crate::scene::state::SceneState;
-use crate::scheduler::sets::SetTable;
+use crate::shared::packed_frame::PackedFrame;
+use crate::shared::sets::SetTable;
 use crate::supervision::contain;
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{FrameNo, SetNo};

@@ -1,16 +1,28 @@
 //! The master's asset files: the manifest workers receive (path, SHA-256, length) and
 //! chunked reads by hash. Only files in the manifest can ever be served, so a worker
-//! cannot ask the master for anything else on its disk.
+//! cannot ask the master for anything else on its disk. The manifest's entries travel in
+//! `Welcome` (`wire::protocol` re-exports them).
 
 use std::collections::HashMap;
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
+use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use thiserror::Error;
 
-use crate::wire::protocol::{AssetEntry, AssetHash};
+/// SHA-256 of an asset file's bytes.
+pub type AssetHash = [u8; 32];
+
+/// One asset file the scene needs.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AssetEntry {
+    /// Path relative to an asset root, as scene states name it.
+    pub path: String,
+    pub hash: AssetHash,
+    pub len: u64,
+}
 
 /// Errors reading asset files.
 #[derive(Debug, Error)]

@@ -4,41 +4,17 @@
 //! latency). It is the only place a [`StateVersion`] is created.
 
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use actix::prelude::*;
 
-use crate::presenter::stats::Counters;
-use crate::presenter::EditApplied;
+use crate::messages::{ApplyEdit, CurrentState, EditApplied, EditMade, PlayScript, StateChanged};
 use crate::scene::edit::{apply, Edit, EditError};
 use crate::scene::state::{SceneState, StateVersion};
-use crate::scheduler::StateChanged;
+use crate::shared::counters::Counters;
 use crate::supervision::{
     ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
 };
-
-/// Apply one edit; answers the new version.
-#[derive(Message, Debug, Clone)]
-#[rtype(result = "Result<StateVersion, EditError>")]
-pub struct ApplyEdit(pub Edit);
-
-/// Apply an edit made at `at` (the window's input event); nothing is answered.
-#[derive(Message, Debug, Clone)]
-#[rtype(result = "()")]
-pub struct EditMade {
-    pub edit: Edit,
-    pub at: Instant,
-}
-
-/// Apply each edit at its time after now.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct PlayScript(pub Vec<(Duration, Edit)>);
-
-/// The current state.
-#[derive(Message)]
-#[rtype(result = "Arc<SceneState>")]
-pub struct CurrentState;
 
 /// The current scene state and who hears about changes.
 pub struct SceneHolder {

@@ -29,7 +29,7 @@
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::time::{Duration, Instant};
 
-use crate::assembler::wait_heuristic::Pacing;
+use crate::shared::pacing::Pacing;
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::{FrameNo, SetNo};
 
@@ -227,7 +227,7 @@ impl HandOutPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::assembler::wait_heuristic::Heuristic;
+    use crate::shared::pacing::Heuristic;
 
     const MS: Duration = Duration::from_millis(1);
 

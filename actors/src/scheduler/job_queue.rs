@@ -19,15 +19,8 @@ use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
 use crate::scene::state::SceneState;
+use crate::shared::job::Job;
 use crate::wire::protocol::{FrameNo, SetNo};
-
-/// One unit of work: render set `set` of frame `frame` with `state`.
-#[derive(Clone, Debug)]
-pub struct Job {
-    pub frame: FrameNo,
-    pub set: SetNo,
-    pub state: Arc<SceneState>,
-}
 
 /// A frame that was just added to the queue.
 #[derive(Clone, Debug)]

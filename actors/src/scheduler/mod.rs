@@ -15,7 +15,6 @@
 
 pub mod handout_plan;
 pub mod job_queue;
-pub mod sets;
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -23,63 +22,22 @@ use std::time::Instant;
 
 use actix::prelude::*;
 
-use crate::assembler::wait_heuristic::Pacing;
-use crate::assembler::{FrameScheduled, FrameStarted, FramesAbandoned, FramesOutdated};
-use crate::connection::JobsAssigned;
-use crate::presenter::stats::Counters;
+use crate::messages::{
+    FrameDisplayed, FrameScheduled, FrameStarted, FramesAbandoned, FramesOutdated, JobAnswered,
+    JobsAssigned, PacingChanged, StateChanged, WorkerLeft, WorkerReady,
+};
 use crate::scene::state::SceneState;
 use crate::scheduler::handout_plan::HandOutPlan;
-use crate::scheduler::job_queue::{Job, JobQueue};
+use crate::scheduler::job_queue::JobQueue;
+use crate::shared::counters::Counters;
+use crate::shared::job::Job;
+use crate::shared::pacing::Pacing;
 use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
 use crate::wire::protocol::ConnId;
-use crate::wire::protocol::{FrameNo, SetNo};
+use crate::wire::protocol::FrameNo;
 
 /// Most frames in flight however large the grid (each holds a frame table slot).
 const MAX_FRAME_WINDOW: u64 = 64;
-
-/// The scene state changed: new frames use it.
-#[derive(Message, Clone)]
-#[rtype(result = "()")]
-pub struct StateChanged(pub Arc<SceneState>);
-
-/// A connection's worker can take `credits` more jobs; send them to `jobs_to`.
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct WorkerReady {
-    pub conn: ConnId,
-    pub credits: u32,
-    pub jobs_to: Recipient<JobsAssigned>,
-}
-
-/// A connection ended or its worker paused; its unserved credits are void (its held
-/// jobs are not redone).
-#[derive(Message)]
-#[rtype(result = "()")]
-pub struct WorkerLeft {
-    pub conn: ConnId,
-}
-
-/// A connection received its worker's result for `(frame, set)` (in time or not): the
-/// worker's job time is measured from these.
-#[derive(Message, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct JobAnswered {
-    pub conn: ConnId,
-    pub frame: FrameNo,
-    pub set: SetNo,
-}
-
-/// Frames are paced this way from now on (the quota and deadlines follow).
-#[derive(Message, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct PacingChanged(pub Pacing);
-
-/// The assembler showed or skipped `frame`: jobs of it and earlier frames are discarded.
-#[derive(Message, Clone, Copy)]
-#[rtype(result = "()")]
-pub struct FrameDisplayed {
-    pub frame: FrameNo,
-}
 
 /// Where the scheduler's events go.
 pub struct SchedulerLinks {

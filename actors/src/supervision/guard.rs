@@ -19,7 +19,7 @@ use actix::prelude::*;
 use super::inject::PanicPlan;
 use super::restart::{RestartDecision, RestartPolicy, RestartTracker};
 use super::{contain, ActorKind, Site};
-use crate::presenter::stats::Counters;
+use crate::shared::counters::Counters;
 
 /// What a contained panic does to an actor.
 #[derive(Debug)]

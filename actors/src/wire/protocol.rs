@@ -106,6 +106,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::scene::state::{SceneState, StateVersion};
 
+pub use crate::scene::asset_store::{AssetEntry, AssetHash};
+
 /// Bumped on every incompatible change of any message below.
 /// 2: RGB9E5 radiance travels as one MessagePack `bin` of little-endian `u32`s.
 /// 3: every result carries an integrity tag (`JobResult::tag`).
@@ -140,9 +142,6 @@ pub type ConnId = u64;
 /// Number of a pixel set within a frame, `0..sets`.
 pub type SetNo = u32;
 
-/// SHA-256 of an asset file's bytes.
-pub type AssetHash = [u8; 32];
-
 /// How pixels are assigned to sets (docs/design.md, decision 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Partition {
@@ -158,15 +157,6 @@ pub struct SetsConfig {
     /// Number of sets S per frame.
     pub sets: u32,
     pub partition: Partition,
-}
-
-/// One asset file the scene needs.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct AssetEntry {
-    /// Path relative to an asset root, as scene states name it.
-    pub path: String,
-    pub hash: AssetHash,
-    pub len: u64,
 }
 
 /// Radiance of a set's pixels, in set order, packed (docs/design.md, decision 2): the mean over

@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{self, MasterHandle};
-use gridlight_actors::stats::Counters;
 use serde::Serialize;
 
 use super::master::{

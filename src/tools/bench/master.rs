@@ -17,11 +17,11 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{self, Heuristic, MasterConfig, Pacing, ShownFrame, SinkError};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::sink::FrameSink;
 use gridlight_actors::state::{Camera, Resolution, SceneState};
-use gridlight_actors::stats::Counters;
 use serde::Serialize;
 
 use crate::children::Children;

@@ -18,8 +18,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{self, MasterHandle};
-use gridlight_actors::stats::Counters;
 use serde::Serialize;
 
 use super::busy_loop::BusyLoop;

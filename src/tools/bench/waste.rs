@@ -15,9 +15,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{self, MasterConfig, Pacing};
 use gridlight_actors::protocol::{Partition, SetsConfig};
-use gridlight_actors::stats::{useful_fraction, Counters};
+use gridlight_actors::stats::useful_fraction;
 use serde::Serialize;
 
 use super::master::{bench_state, spawn_null_workers, CountingSink, NullWorkers};

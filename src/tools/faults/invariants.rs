@@ -22,10 +22,10 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{ShownFrame, SinkError};
 use gridlight_actors::protocol::FrameNo;
 use gridlight_actors::sink::FrameSink;
-use gridlight_actors::stats::Counters;
 
 /// Violations kept verbatim; beyond this only the count grows (bounded memory).
 const MAX_KEPT: usize = 32;

@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use super::{Action, Phase, ProtocolState};
-use crate::scheduler::job_queue::Job;
+use crate::shared::job::Job;
 use crate::wire::protocol::{FrameNo, JobResult, MasterMsg, PauseReason, SetNo};
 use crate::wire::rejection::Rejection;
 

@@ -1,11 +1,11 @@
 //! The protocol rules of one connection, case by case, without a socket.
 
 use super::*;
-use crate::connection::workers::WorkerTable;
 use crate::scene::asset_store::AssetStore;
 use crate::scene::state::{Camera, Resolution, SceneState};
-use crate::scheduler::job_queue::Job;
-use crate::scheduler::sets::SetTable;
+use crate::shared::job::Job;
+use crate::shared::sets::SetTable;
+use crate::shared::workers::WorkerTable;
 use crate::wire::auth;
 use crate::wire::channel::{initiate, ChannelError, Psk};
 use crate::wire::protocol::PROTOCOL_VERSION;

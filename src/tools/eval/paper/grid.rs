@@ -20,13 +20,14 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::master::{self, MasterConfig, Pacing, ShownFrame, SinkError};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::sets::SetTable;
 use gridlight_actors::sink::FrameSink;
 use gridlight_actors::state::SceneState;
-use gridlight_actors::stats::{useful_fraction, Counters};
+use gridlight_actors::stats::useful_fraction;
 use serde::Serialize;
 
 use crate::assets::Assets;

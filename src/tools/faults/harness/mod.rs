@@ -17,10 +17,10 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use gridlight_actors::asset_store::AssetStore;
+use gridlight_actors::counters::Counters;
 use gridlight_actors::master::{start, MasterConfig, MasterHandle};
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::state::{Camera, Geometry, Material, Object, Resolution, SceneState};
-use gridlight_actors::stats::Counters;
 use thiserror::Error;
 
 use super::invariants::{lock, Checker, CheckingSink, Gap, Limits, QSummary, SharedChecker};

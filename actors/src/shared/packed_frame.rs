@@ -1,5 +1,7 @@
 //! A frame's accepted results as they arrived: one packed radiance vector per set, moved
-//! out of its message, unpacked into per-pixel planes only when the frame is shown.
+//! out of its message, unpacked into per-pixel planes only when the frame is shown. The
+//! assembler fills it and closes the frame ([`ClosedFrame`]); the presenter hands it to the
+//! sink thread, which unpacks it.
 //!
 //! Scattering every result into a full-size frame on arrival cost the master's actor
 //! thread, which bounds frames per second, about a fifth of its time (`gridlight bench
@@ -11,9 +13,23 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use crate::scheduler::sets::SetTable;
+use crate::scene::state::SceneState;
+use crate::shared::sets::SetTable;
 use crate::wire::packing::decode_rgb9e5;
-use crate::wire::protocol::SetNo;
+use crate::wire::protocol::{ConnId, FrameNo, SetNo};
+
+/// A frame taken out of the table for display.
+#[derive(Debug)]
+pub struct ClosedFrame {
+    pub frame: FrameNo,
+    pub state: Arc<SceneState>,
+    /// The accepted results.
+    pub results: PackedFrame,
+    /// Per set, the connection whose result was accepted (`None`: no result).
+    pub owners: Vec<Option<ConnId>>,
+    pub back: u32,
+    pub total: u32,
+}
 
 /// The accepted results of one frame, packed (RGB9E5 words in set order).
 #[derive(Clone, Debug)]

@@ -1,0 +1,17 @@
+//! Values several actors share, none of them an actor's own: they live here, not in one
+//! actor's folder, so that no two actor folders import each other
+//! (`actors/tests/layout.rs`).
+//!
+//! - [`sets`]: the pixel sets (`SetTable`), derived the same way by master and workers;
+//! - [`job`]: one set of one frame with its scene state;
+//! - [`pacing`]: how frames are paced (the wait heuristic's parameters or a fixed rate);
+//! - [`packed_frame`]: a frame's accepted results, packed, and the frame closed for display;
+//! - [`workers`]: the table of connected workers (the status panel's rows);
+//! - [`counters`]: the master run's counters.
+
+pub mod counters;
+pub mod job;
+pub mod pacing;
+pub mod packed_frame;
+pub mod sets;
+pub mod workers;
