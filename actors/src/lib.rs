@@ -28,7 +28,8 @@
 //!
 //! # The result path runs one way
 //! Scheduler → (connection → worker → connection) → assembler → presenter → sink thread.
-//! Each fact has one keeper: who holds which job, and every check of a result, the
+//! Each fact has one keeper: who holds which job, the record in [`shared::holdings`]
+//! (entered at hand-out, taken back by the connection); every check of a result, the
 //! connection's protocol state; a frame's results, its timing and the decision to show it, the
 //! assembler; the dropped counts, `Counters`; accumulation, the assembler's decision,
 //! carried with the frame. Where an answer must go back (a frame displayed, a sink

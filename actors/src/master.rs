@@ -37,8 +37,9 @@ use crate::scene::asset_store::AssetStore;
 use crate::scene::edit::{Edit, EditError};
 use crate::scene::state::{SceneState, StateVersion};
 use crate::scene_holder::SceneHolder;
-use crate::scheduler::{Scheduler, SchedulerLinks};
+use crate::scheduler::{Scheduler, SchedulerConfig, SchedulerLinks};
 use crate::shared::counters::Counters;
+use crate::shared::holdings::HeldJobs;
 use crate::shared::sets::SetTable;
 use crate::shared::workers::WorkerTable;
 use crate::supervision::{
@@ -299,18 +300,19 @@ fn wire(
         abandoned_to: assembler.clone().recipient(),
         outdated_to: assembler.clone().recipient(),
     };
-    let scheduler = Scheduler::new(
-        config.sets.sets,
+    let scheduler_config = SchedulerConfig {
+        sets: config.sets.sets,
         threshold,
-        state.clone(),
-        config.pacing,
-        links,
-        counters.clone(),
-        config.restart,
-    )
-    .with_stale_discard(config.discard_stale_jobs)
-    .with_faults(faults.clone())
-    .start();
+        pacing: config.pacing,
+        policy: config.restart,
+    };
+    // Who holds which job: one record, written where a job changes hands.
+    let held = Arc::new(HeldJobs::default());
+    let scheduler =
+        Scheduler::new(scheduler_config, state.clone(), links, counters.clone(), held.clone())
+            .with_stale_discard(config.discard_stale_jobs)
+            .with_faults(faults.clone())
+            .start();
     let (changes_to, edits_to) = (scheduler.clone().recipient(), presenter.clone().recipient());
     let scene = SceneHolder::new(state, changes_to, edits_to, counters.clone(), config.restart)
         .with_faults(faults.clone())
@@ -324,6 +326,7 @@ fn wire(
         heartbeat: config.heartbeat,
         peer_timeout: config.peer_timeout,
         workers,
+        held,
     });
     // Connections report their end to the listener, their supervisor.
     let listener_ctx = Context::<Listener>::new();

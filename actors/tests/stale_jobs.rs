@@ -78,6 +78,16 @@ fn first_frame_of(rx: &Receiver<ShownFrame>, version: StateVersion) -> ShownFram
     }
 }
 
+/// A scripted worker that asked for two jobs and holds them: (frame, set, version) each.
+fn holding_two(m: &MasterHandle) -> (Peer, [(FrameNo, SetNo, StateVersion); 2]) {
+    let mut p = Peer::connect(m.local_addr());
+    p.handshake(None).expect("handshake");
+    p.send(&WorkerMsg::Ready { credits: 2 });
+    let (f1, s1, v1, _) = p.next_job().expect("a first job");
+    let (f2, s2, v2, _) = p.next_job().expect("a second job");
+    (p, [(f1, s1, v1), (f2, s2, v2)])
+}
+
 /// One worker holds two jobs of the first state and never answers them; the state
 /// changes; a second worker joins and answers every job it gets.
 struct HeldThenEdited {
@@ -95,11 +105,7 @@ struct HeldThenEdited {
 impl HeldThenEdited {
     fn start(discard: bool) -> Self {
         let (m, rx) = master(discard);
-        let mut holder = Peer::connect(m.local_addr());
-        holder.handshake(None).expect("handshake");
-        holder.send(&WorkerMsg::Ready { credits: 2 });
-        let (_, _, v1, _) = holder.next_job().expect("a first job");
-        let (_, _, also_v1, _) = holder.next_job().expect("a second job");
+        let (holder, [(_, _, v1), (_, _, also_v1)]) = holding_two(&m);
         assert_eq!(v1, also_v1);
         let v2 = move_camera(&m);
         assert!(v2 > v1);
@@ -165,11 +171,7 @@ fn the_old_scheduler_hands_out_the_old_states_queue_so_the_check_above_can_fail(
 fn a_worker_that_drops_its_held_old_jobs_gets_its_slots_back() {
     let (m, _rx) = master(true);
     let table = table();
-    let mut p = Peer::connect(m.local_addr());
-    p.handshake(None).expect("handshake");
-    p.send(&WorkerMsg::Ready { credits: 2 });
-    let (f1, s1, v1, _) = p.next_job().expect("a first job");
-    let (f2, s2, _, _) = p.next_job().expect("a second job");
+    let (mut p, [(f1, s1, v1), (f2, s2, _)]) = holding_two(&m);
     let v2 = move_camera(&m);
     // Both held jobs are dropped unrendered, as a worker does when a newer state's job
     // comes; without the master freeing their slots these credits would be clamped to 0
@@ -195,4 +197,37 @@ fn a_worker_that_drops_its_held_old_jobs_gets_its_slots_back() {
         }
     };
     assert!(reason.contains("not given"), "{reason}");
+}
+
+/// Issue 43: a worker that dropped every job it held (`Superseded`) holds nothing, so it
+/// is idle and must get a job even when none is forecast in time for it. Here its one
+/// measured job took longer than the frame window reaches at 100 frames per second (64
+/// frames, 640 ms), so no frame fits it: only "an idle worker always gets a job" serves
+/// it. A second record of held jobs that kept the dropped one would call it busy, and
+/// it would wait for good.
+#[test]
+fn a_worker_that_dropped_its_held_jobs_is_idle_and_gets_a_job() {
+    let mut c = config();
+    c.pacing = gridlight_actors::pacing::Pacing::FixedFps(100.0);
+    let (sink, _rx) = collect_sink();
+    let m = start(c, scene(), AssetStore::new(), sink).expect("start");
+    let table = table();
+    let (mut p, [(f1, s1, v1), (f2, s2, _)]) = holding_two(&m);
+    // Its job time is measured from this answer: longer than the frame window reaches.
+    thread::sleep(Duration::from_millis(1200));
+    assert!(p.answer(&table, f1, s1, v1, 1.0));
+    move_camera(&m);
+    p.send(&WorkerMsg::Superseded { frame: f2, set: s2 });
+    p.send(&WorkerMsg::Ready { credits: 1 });
+    let job = loop {
+        match p.recv_within(Duration::from_secs(5)) {
+            Some(MasterMsg::State(_)) => continue,
+            other => break other,
+        }
+    };
+    assert!(
+        matches!(job, Some(MasterMsg::Job { .. })),
+        "the idle worker got no job within 5 s: {job:?}"
+    );
+    assert_eq!(Counters::get(&m.counters().jobs_superseded), 1);
 }

@@ -30,6 +30,7 @@ use crate::messages::{
 };
 use crate::scene::asset_store::AssetStore;
 use crate::shared::counters::Counters;
+use crate::shared::holdings::HeldJobs;
 use crate::shared::sets::SetTable;
 use crate::shared::workers::WorkerTable;
 use crate::supervision::{
@@ -56,6 +57,8 @@ pub struct ConnectionConfig {
     pub peer_timeout: Duration,
     /// The connected workers, for the status panel; each connection writes its row.
     pub workers: Arc<WorkerTable>,
+    /// Who holds which job: the master's one record, shared with the scheduler.
+    pub held: Arc<HeldJobs>,
 }
 
 /// Where a connection's messages go.
@@ -144,18 +147,20 @@ impl Connection {
     /// Tells the scheduler, the worker table and the listener that this connection is
     /// gone; the jobs it held are lost and counted.
     fn ended(&mut self) {
-        self.links.left_to.do_send(WorkerLeft { conn: self.id });
+        let lost = self.protocol.release_held();
+        let frames = lost.iter().map(|h| h.frame).collect();
+        self.links.left_to.do_send(WorkerLeft { conn: self.id, lost: frames });
         if self.protocol.welcomed() {
             let c = &self.counters;
             let count = if self.protocol.paused() { &c.paused_workers } else { &c.workers };
             count.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
             self.config.workers.left(self.id);
         }
-        Counters::add(&self.counters.jobs_lost, self.protocol.held() as u64);
+        Counters::add(&self.counters.jobs_lost, lost.len() as u64);
         let worker = self.worker.take();
         self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed, worker });
         tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
-            jobs_lost = self.protocol.held(), "connection closed");
+            jobs_lost = lost.len(), "connection closed");
     }
 }
 
@@ -307,11 +312,11 @@ impl Connection {
                     credits,
                     jobs_to: ctx.address().recipient(),
                 }),
-                Action::Paused { reason, first } => {
+                Action::Paused { reason, first, lost } => {
                     if first {
                         tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
                             %reason, "worker paused");
-                        self.links.left_to.do_send(WorkerLeft { conn: self.id });
+                        self.links.left_to.do_send(WorkerLeft { conn: self.id, lost });
                         Counters::add(&self.counters.paused_workers, 1);
                         self.counters.workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
                     }
@@ -323,11 +328,10 @@ impl Connection {
                     Counters::add(&self.counters.workers, 1);
                     self.config.workers.resumed(self.id);
                 }
-                Action::Answered(result) => {
+                Action::Answered { result, handed_at } => {
                     self.config.workers.heard(self.id, 1);
                     self.config.workers.timed(self.id, result.render_us);
-                    let (frame, set) = (result.frame, result.set);
-                    self.links.answered_to.do_send(JobAnswered { conn: self.id, frame, set });
+                    self.links.answered_to.do_send(JobAnswered { conn: self.id, handed_at });
                     self.links.results_to.do_send(ResultArrived { conn: self.id, result });
                 }
                 Action::Duplicate { frame, set } => {

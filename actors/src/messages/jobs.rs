@@ -1,10 +1,12 @@
 //! Jobs between the connections and the scheduler: credits in, jobs out, and what became
 //! of the jobs a worker held.
 
+use std::time::Instant;
+
 use actix::prelude::*;
 
 use crate::shared::job::Job;
-use crate::wire::protocol::{ConnId, FrameNo, SetNo};
+use crate::wire::protocol::{ConnId, FrameNo};
 
 /// A connection's worker can take `credits` more jobs; send them to `jobs_to`.
 #[derive(Message)]
@@ -15,22 +17,23 @@ pub struct WorkerReady {
     pub jobs_to: Recipient<JobsAssigned>,
 }
 
-/// A connection ended or its worker paused; its unserved credits are void (its held
-/// jobs are not redone).
+/// A connection ended or its worker paused; its unserved credits are void and the jobs
+/// it held are lost (taken out of the record of held jobs, never redone).
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct WorkerLeft {
     pub conn: ConnId,
+    /// The frame of each job it held: other sets of those frames make up their quota.
+    pub lost: Vec<FrameNo>,
 }
 
-/// A connection received its worker's result for `(frame, set)` (in time or not): the
-/// worker's job time is measured from these.
+/// A connection received its worker's result for a job handed out at `handed_at` (in
+/// time or not): the worker's job time is measured from these.
 #[derive(Message, Clone, Copy)]
 #[rtype(result = "()")]
 pub struct JobAnswered {
     pub conn: ConnId,
-    pub frame: FrameNo,
-    pub set: SetNo,
+    pub handed_at: Instant,
 }
 
 /// To a connection: jobs handed to it.

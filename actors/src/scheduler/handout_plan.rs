@@ -1,4 +1,4 @@
-//! Which frame a worker's next job comes from (docs/design.md, decision 8): pure logic behind
+//! Which frame a worker's next job comes from (DESIGN.md decision 8): pure logic behind
 //! the scheduler.
 //!
 //! A result is used only if it arrives before its frame is displayed; a late one was
@@ -25,34 +25,26 @@
 //! A connection that holds nothing always gets a job (of the newest open frame when none
 //! fits), so a worker that once looked slow keeps being measured. Nothing here redoes a
 //! job: the plan only chooses among sets not handed out yet.
+//!
+//! The plan owns no job. Which jobs a connection holds, and since when, is read from the
+//! master's one record of it ([`Holdings`]), passed in with each question: a job its
+//! worker dropped (`Superseded`) or lost leaves the record, and so every forecast, at once.
 
-use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
+use crate::shared::holdings::{HeldJob, Holdings};
 use crate::shared::pacing::Pacing;
-use crate::wire::protocol::ConnId;
-use crate::wire::protocol::{FrameNo, SetNo};
+use crate::wire::protocol::{ConnId, FrameNo};
 
 /// Weight of a new job-time sample in the running estimate.
 const JOB_TIME_GAIN: f64 = 0.25;
-
-/// One job a connection holds.
-#[derive(Clone, Copy, Debug)]
-struct Held {
-    frame: FrameNo,
-    set: SetNo,
-    handed_at: Instant,
-    /// When its result is expected (`None` before the connection's first result).
-    arrival: Option<Instant>,
-}
 
 /// What is known of one connection's speed.
 #[derive(Debug, Default)]
 struct ConnClock {
     /// Smoothed time one job takes; `None` until its first result.
     job_time: Option<Duration>,
-    /// Jobs held, in hand-out order (the order the worker renders them).
-    held: VecDeque<Held>,
     last_result: Option<Instant>,
 }
 
@@ -95,28 +87,34 @@ impl HandOutPlan {
     }
 
     /// The frame, among `open` (frames with sets left, oldest first), that `conn`'s next
-    /// job should come from at `now`; `None` when it should wait for a later frame.
-    pub fn choose(&self, conn: ConnId, open: &[FrameNo], now: Instant) -> Option<FrameNo> {
-        match open.iter().find(|f| self.fits(conn, **f, now)) {
+    /// job should come from at `now`, `conn` holding `held`; `None` when it should wait
+    /// for a later frame.
+    pub fn choose(
+        &self,
+        conn: ConnId,
+        held: &[HeldJob],
+        open: &[FrameNo],
+        now: Instant,
+    ) -> Option<FrameNo> {
+        match open.iter().find(|f| self.fits(conn, held, **f, now)) {
             Some(&f) => Some(f),
-            None if self.held(conn) == 0 => open.last().copied(),
+            None if held.is_empty() => open.last().copied(),
             None => None,
         }
     }
 
-    /// Whether a job of `frame` handed to `conn` at `now` is forecast to come back before
-    /// the frame is displayed (true when either cannot be forecast yet).
-    pub fn fits(&self, conn: ConnId, frame: FrameNo, now: Instant) -> bool {
-        match (self.arrival(conn, now), self.deadline(frame, now)) {
+    /// Whether a job of `frame` handed at `now` to `conn`, holding `held`, is forecast to
+    /// come back before the frame is displayed (true when either cannot be forecast yet).
+    pub fn fits(&self, conn: ConnId, held: &[HeldJob], frame: FrameNo, now: Instant) -> bool {
+        match (self.arrival(conn, held, now), self.deadline(frame, now)) {
             (Some(a), Some(d)) => a <= d,
             _ => true,
         }
     }
 
-    /// `conn` was handed `(frame, set)` at `now`. True when it is the frame's first
+    /// `conn` was handed a job of `frame` at `now`. True when it is the frame's first
     /// hand-out: the start of its computation.
-    pub fn handed(&mut self, conn: ConnId, frame: FrameNo, set: SetNo, now: Instant) -> bool {
-        let arrival = self.arrival(conn, now);
+    pub fn handed(&mut self, conn: ConnId, frame: FrameNo, now: Instant) -> bool {
         let mut first = false;
         if self.last.is_none_or(|d| frame > d.frame) {
             self.started.entry(frame).or_insert_with(|| {
@@ -124,41 +122,27 @@ impl HandOutPlan {
                 now
             });
         }
-        let c = self.conns.entry(conn).or_default();
-        c.held.push_back(Held { frame, set, handed_at: now, arrival });
+        self.conns.entry(conn).or_default();
         first
     }
 
-    /// `conn` returned its result for `(frame, set)` at `now` (in time or not).
-    pub fn answered(&mut self, conn: ConnId, frame: FrameNo, set: SetNo, now: Instant) {
+    /// `conn` returned at `now` the result of a job handed out at `handed_at` (in time or
+    /// not): a sample of its job time, from the later of the hand-out and its previous
+    /// result (a worker renders its jobs in order).
+    pub fn answered(&mut self, conn: ConnId, handed_at: Instant, now: Instant) {
         let Some(c) = self.conns.get_mut(&conn) else { return };
-        let Some(i) = c.held.iter().position(|h| h.frame == frame && h.set == set) else {
-            return;
-        };
-        let Some(job) = c.held.remove(i) else { return };
-        let began = c.last_result.map_or(job.handed_at, |r| r.max(job.handed_at));
+        let began = c.last_result.map_or(handed_at, |r| r.max(handed_at));
         let sample = now.saturating_duration_since(began);
         c.job_time = Some(match c.job_time {
             Some(t) => t.mul_f64(1.0 - JOB_TIME_GAIN) + sample.mul_f64(JOB_TIME_GAIN),
             None => sample,
         });
         c.last_result = Some(now);
-        // What is still held starts from this result: predictions move with reality.
-        let mut at = now;
-        if let Some(t) = c.job_time {
-            for h in c.held.iter_mut() {
-                at += t;
-                h.arrival = Some(at);
-            }
-        }
     }
 
-    /// `conn` is gone; returns the jobs it held, which will never be answered.
-    pub fn left(&mut self, conn: ConnId) -> Vec<(FrameNo, SetNo)> {
-        self.conns
-            .remove(&conn)
-            .map(|c| c.held.iter().map(|h| (h.frame, h.set)).collect())
-            .unwrap_or_default()
+    /// `conn` is gone (or paused): what was measured of it is forgotten.
+    pub fn left(&mut self, conn: ConnId) {
+        self.conns.remove(&conn);
     }
 
     /// The display shown or skipped `frame` (and so every earlier one) at `now`.
@@ -171,37 +155,32 @@ impl HandOutPlan {
         self.last = Some(Displayed { frame, at: now, took });
     }
 
-    /// Jobs `conn` holds.
-    pub fn held(&self, conn: ConnId) -> usize {
-        self.conns.get(&conn).map_or(0, |c| c.held.len())
-    }
-
-    /// Jobs held by all connections.
-    pub fn held_total(&self) -> usize {
-        self.conns.values().map(|c| c.held.len()).sum()
-    }
-
     /// At a fixed rate, how many frame periods ahead the slowest connection's next result
-    /// arrives: the frame window must reach that far for its job to be in time (0 under
-    /// the heuristic, which waits for results).
-    pub fn frames_ahead(&self, now: Instant) -> u64 {
+    /// arrives, the connections holding `holdings`: the frame window must reach that far
+    /// for its job to be in time (0 under the heuristic, which waits for results).
+    pub fn frames_ahead(&self, holdings: &Holdings, now: Instant) -> u64 {
         let Pacing::FixedFps(fps) = self.pacing else { return 0 };
         let lead = self
             .conns
             .keys()
-            .filter_map(|c| self.arrival(*c, now))
+            .filter_map(|c| self.arrival(*c, holdings.of(*c), now))
             .map(|a| a.saturating_duration_since(now))
             .max()
             .unwrap_or_default();
         (lead.as_secs_f64() * f64::from(fps)).ceil() as u64
     }
 
-    /// When a job handed to `conn` at `now` should come back; `None` before it answered once.
-    pub fn arrival(&self, conn: ConnId, now: Instant) -> Option<Instant> {
+    /// When a job handed at `now` to `conn`, holding `held`, should come back; `None`
+    /// before it answered once. Its worker renders what it holds first, in order, each
+    /// job from the later of its hand-out and the previous one's forecast result.
+    pub fn arrival(&self, conn: ConnId, held: &[HeldJob], now: Instant) -> Option<Instant> {
         let c = self.conns.get(&conn)?;
         let t = c.job_time?;
-        let free = c.held.back().and_then(|h| h.arrival).map_or(now, |a| a.max(now));
-        Some(free + t)
+        let mut free = c.last_result;
+        for h in held {
+            free = Some(free.map_or(h.handed_at, |f| f.max(h.handed_at)) + t);
+        }
+        Some(free.map_or(now, |f| f.max(now)) + t)
     }
 
     /// The latest arrival at which a result of `frame` is still forecast to be used;
@@ -228,23 +207,65 @@ impl HandOutPlan {
 mod tests {
     use super::*;
     use crate::shared::pacing::Heuristic;
+    use crate::wire::protocol::SetNo;
 
     const MS: Duration = Duration::from_millis(1);
 
-    fn heuristic() -> HandOutPlan {
+    fn heuristic_plan() -> HandOutPlan {
         HandOutPlan::new(Pacing::Heuristic(Heuristic::default()))
     }
 
+    /// The plan with the record of held jobs beside it, kept as the scheduler (hand-outs)
+    /// and the connections (results, dropped jobs) keep them.
+    struct Grid {
+        plan: HandOutPlan,
+        held: Holdings,
+    }
+
+    impl Grid {
+        fn new(pacing: Pacing) -> Self {
+            Self { plan: HandOutPlan::new(pacing), held: Holdings::default() }
+        }
+
+        fn heuristic() -> Self {
+            Self { plan: heuristic_plan(), held: Holdings::default() }
+        }
+
+        /// The scheduler hands `(frame, set)` to `conn` at `at`; true for the frame's first.
+        fn hand(&mut self, conn: ConnId, frame: FrameNo, set: SetNo, at: Instant) -> bool {
+            self.held.hand(conn, HeldJob { frame, set, version: 1, handed_at: at });
+            self.plan.handed(conn, frame, at)
+        }
+
+        /// `conn`'s result for `(frame, set)` comes at `at`.
+        fn answer(&mut self, conn: ConnId, frame: FrameNo, set: SetNo, at: Instant) {
+            let job = self.held.take(conn, frame, set).expect("a held job");
+            self.plan.answered(conn, job.handed_at, at);
+        }
+
+        fn choose(&self, conn: ConnId, open: &[FrameNo], now: Instant) -> Option<FrameNo> {
+            self.plan.choose(conn, self.held.of(conn), open, now)
+        }
+
+        fn fits(&self, conn: ConnId, frame: FrameNo, now: Instant) -> bool {
+            self.plan.fits(conn, self.held.of(conn), frame, now)
+        }
+
+        fn arrival(&self, conn: ConnId, now: Instant) -> Option<Instant> {
+            self.plan.arrival(conn, self.held.of(conn), now)
+        }
+    }
+
     /// A connection that answered one job taking `ms`, at `t0 + ms`.
-    fn measured(plan: &mut HandOutPlan, conn: ConnId, t0: Instant, ms: u32) {
-        plan.handed(conn, 0, conn as SetNo, t0);
-        plan.answered(conn, 0, conn as SetNo, t0 + MS * ms);
+    fn measured(grid: &mut Grid, conn: ConnId, t0: Instant, ms: u32) {
+        grid.hand(conn, 0, conn as SetNo, t0);
+        grid.answer(conn, 0, conn as SetNo, t0 + MS * ms);
     }
 
     #[test]
     fn the_heuristic_quota_is_what_shows_a_frame_and_a_fixed_rate_uses_every_set() {
-        assert_eq!(heuristic().quota(64), 32, "Q_max = 0.5 of 64 sets");
-        assert_eq!(heuristic().quota(5), 3, "rounded up: 2 of 5 would not reach Q_max");
+        assert_eq!(heuristic_plan().quota(64), 32, "Q_max = 0.5 of 64 sets");
+        assert_eq!(heuristic_plan().quota(5), 3, "rounded up: 2 of 5 would not reach Q_max");
         let complete = Heuristic { q_min: 1.0, q_max: 1.0, ..Heuristic::default() };
         assert_eq!(HandOutPlan::new(Pacing::Heuristic(complete)).quota(64), 64);
         assert_eq!(HandOutPlan::new(Pacing::FixedFps(10.0)).quota(64), 64);
@@ -254,94 +275,111 @@ mod tests {
 
     #[test]
     fn job_time_is_measured_from_the_later_of_hand_out_and_previous_result() {
-        let mut p = heuristic();
+        let mut p = Grid::heuristic();
         let t0 = Instant::now();
         // Two jobs at once: the second is rendered after the first, so it also took 100 ms.
-        assert!(p.handed(1, 0, 0, t0), "the frame's first hand-out starts it");
-        assert!(!p.handed(1, 0, 1, t0));
+        assert!(p.hand(1, 0, 0, t0), "the frame's first hand-out starts it");
+        assert!(!p.hand(1, 0, 1, t0));
         assert_eq!(p.arrival(1, t0), None, "unmeasured");
-        p.answered(1, 0, 0, t0 + MS * 100);
-        p.answered(1, 0, 1, t0 + MS * 200);
+        p.answer(1, 0, 0, t0 + MS * 100);
+        p.answer(1, 0, 1, t0 + MS * 200);
         assert_eq!(p.arrival(1, t0 + MS * 200), Some(t0 + MS * 300));
-        assert_eq!(p.held(1), 0);
+        assert!(p.held.of(1).is_empty());
         // Held jobs queue up: the next one comes after them.
-        p.handed(1, 1, 0, t0 + MS * 200);
+        p.hand(1, 1, 0, t0 + MS * 200);
         assert_eq!(p.arrival(1, t0 + MS * 200), Some(t0 + MS * 400));
     }
 
     #[test]
     fn at_a_fixed_rate_a_job_goes_to_the_first_frame_shown_after_it_arrives() {
-        let mut p = HandOutPlan::new(Pacing::FixedFps(10.0)); // a frame every 100 ms
+        let mut p = Grid::new(Pacing::FixedFps(10.0)); // a frame every 100 ms
         let t0 = Instant::now();
         measured(&mut p, 1, t0, 250);
         let now = t0 + MS * 250;
-        p.displayed(4, now);
+        p.plan.displayed(4, now);
         // Frames 5, 6, 7 are shown at +100, +200, +300 ms; the job arrives at +250.
         assert_eq!(p.choose(1, &[5, 6, 7, 8], now), Some(7));
-        assert_eq!(p.frames_ahead(now), 3, "the window must reach frame 4 + 3");
-        assert_eq!(p.deadline(4, now), Some(now), "a displayed frame has no future");
+        assert_eq!(p.plan.frames_ahead(&p.held, now), 3, "the window must reach frame 4 + 3");
+        assert_eq!(p.plan.deadline(4, now), Some(now), "a displayed frame has no future");
     }
 
     #[test]
     fn a_worker_holding_work_waits_rather_than_render_a_late_result() {
-        let mut p = HandOutPlan::new(Pacing::FixedFps(10.0));
+        let mut p = Grid::new(Pacing::FixedFps(10.0));
         let t0 = Instant::now();
         measured(&mut p, 1, t0, 250);
         let now = t0 + MS * 250;
-        p.displayed(4, now);
-        p.handed(1, 7, 0, now); // arrives at +250: in time for frame 7
+        p.plan.displayed(4, now);
+        p.hand(1, 7, 0, now); // arrives at +250: in time for frame 7
         assert_eq!(p.choose(1, &[5, 6, 7], now), None, "its next would arrive at +500");
         assert_eq!(p.choose(1, &[5, 6, 7, 8, 9], now), Some(9));
         // Holding nothing, it gets the newest frame anyway: it must stay measured.
-        p.answered(1, 7, 0, now + MS * 250);
+        p.answer(1, 7, 0, now + MS * 250);
         assert_eq!(p.choose(1, &[5, 6], now + MS * 250), Some(6));
         assert!(!p.fits(1, 6, now + MS * 250) && p.fits(1, 9, now + MS * 250));
     }
 
     #[test]
     fn under_the_heuristic_the_deadline_is_i_min_times_the_last_frame_after_a_frame_starts() {
-        let mut p = heuristic();
+        let mut p = Grid::heuristic();
         let t0 = Instant::now();
-        p.handed(2, 0, 0, t0);
-        p.displayed(0, t0 + MS * 100); // frame 0 took 100 ms from its first hand-out
+        p.hand(2, 0, 0, t0);
+        p.plan.displayed(0, t0 + MS * 100); // frame 0 took 100 ms from its first hand-out
         measured(&mut p, 1, t0 + MS * 100, 50);
         let now = t0 + MS * 150;
-        p.handed(2, 1, 0, now - MS * 40);
+        p.hand(2, 1, 0, now - MS * 40);
         // Frame 1 started 40 ms ago: its deadline is in 160 ms; a fresh frame's in 200.
-        assert_eq!(p.deadline(1, now), Some(now + MS * 160));
-        assert_eq!(p.deadline(2, now), Some(now + MS * 200));
+        assert_eq!(p.plan.deadline(1, now), Some(now + MS * 160));
+        assert_eq!(p.plan.deadline(2, now), Some(now + MS * 200));
         assert_eq!(p.choose(1, &[1, 2], now), Some(1), "a 50 ms job is in time for frame 1");
         // A worker taking 180 ms is too slow for frame 1 but not for frame 2.
         measured(&mut p, 3, now - MS * 180, 180);
-        p.handed(3, 9, 1, now);
+        p.hand(3, 9, 1, now);
         assert_eq!(p.choose(3, &[1, 2], now), None, "held work first: +360 ms");
-        p.answered(3, 9, 1, now + MS * 180);
+        p.answer(3, 9, 1, now + MS * 180);
         let later = now + MS * 180;
-        assert_eq!(p.deadline(2, later), Some(later + MS * 200));
+        assert_eq!(p.plan.deadline(2, later), Some(later + MS * 200));
         assert_eq!(p.choose(3, &[1, 2], later), Some(2));
     }
 
     #[test]
     fn nothing_is_forecast_before_a_frame_was_displayed() {
-        let mut p = HandOutPlan::new(Pacing::FixedFps(100.0));
+        let mut p = Grid::new(Pacing::FixedFps(100.0));
         let t0 = Instant::now();
         measured(&mut p, 1, t0, 5000);
-        assert_eq!(p.deadline(3, t0), None);
+        assert_eq!(p.plan.deadline(3, t0), None);
         assert_eq!(p.choose(1, &[3, 4], t0), Some(3));
     }
 
     #[test]
-    fn a_connection_that_leaves_gives_back_the_jobs_it_held() {
-        let mut p = heuristic();
+    fn a_job_its_worker_dropped_leaves_every_forecast_at_once() {
+        // Issue 43: the plan kept its own list of held jobs, which a dropped (superseded)
+        // job never left: the worker looked busy for good, its forecasts stayed late, and
+        // an idle worker with no frame in time for it got nothing.
+        let mut p = Grid::new(Pacing::FixedFps(10.0));
         let t0 = Instant::now();
-        p.handed(1, 3, 7, t0);
-        p.handed(1, 4, 2, t0);
-        p.handed(2, 4, 3, t0);
-        assert_eq!(p.held_total(), 3);
-        assert_eq!(p.left(1), vec![(3, 7), (4, 2)]);
-        assert_eq!(p.held_total(), 1);
-        assert!(p.left(1).is_empty());
-        p.answered(1, 3, 7, t0 + MS); // a stray answer after leaving changes nothing
-        assert_eq!(p.held(1), 0);
+        measured(&mut p, 1, t0, 250);
+        let now = t0 + MS * 250;
+        p.plan.displayed(4, now);
+        p.hand(1, 7, 0, now);
+        assert_eq!(p.arrival(1, now), Some(now + MS * 500), "behind its held job");
+        assert_eq!(p.choose(1, &[5, 6], now), None, "busy, and nothing is in time");
+        // The worker drops it (a newer state's job came): the connection takes it back.
+        assert!(p.held.take(1, 7, 0).is_some());
+        assert_eq!(p.arrival(1, now), Some(now + MS * 250));
+        assert_eq!(p.choose(1, &[5, 6], now), Some(6), "idle: the newest frame anyway");
+        assert_eq!(p.plan.frames_ahead(&p.held, now), 3);
+    }
+
+    #[test]
+    fn a_connection_that_leaves_is_forgotten() {
+        let mut p = Grid::heuristic();
+        let t0 = Instant::now();
+        measured(&mut p, 1, t0, 100);
+        assert!(p.arrival(1, t0).is_some());
+        p.plan.left(1);
+        assert_eq!(p.arrival(1, t0), None, "measured afresh if it comes back");
+        p.plan.answered(1, t0, t0 + MS); // a stray answer after leaving changes nothing
+        assert_eq!(p.arrival(1, t0), None);
     }
 }

@@ -5,8 +5,9 @@
 //! each job from the frame the [`HandOutPlan`] says its result will be in time for, tells
 //! the frame assembler about every new frame before any of its jobs leaves and about its
 //! first hand-out (which times it), and drops queued jobs of frames already displayed.
-//! Who holds which job is the connections' to know (each checks its results against
-//! its own); the scheduler only counts per connection for its plan. The frame window
+//! Who holds which job is kept in one record ([`HeldJobs`]): the scheduler enters each
+//! job it hands out, the connection that holds it takes it back out (answered, dropped,
+//! lost) and checks its results against it, and the plan reads it. The frame window
 //! grows with the credits and jobs the grid holds. When the scene state changes it
 //! discards the queued jobs of older versions at once and tells the assembler not to
 //! wait for the jobs of those frames still held by workers ([`FramesOutdated`]), so that
@@ -30,6 +31,7 @@ use crate::scene::state::SceneState;
 use crate::scheduler::handout_plan::HandOutPlan;
 use crate::scheduler::job_queue::JobQueue;
 use crate::shared::counters::Counters;
+use crate::shared::holdings::{HeldJob, HeldJobs};
 use crate::shared::job::Job;
 use crate::shared::pacing::Pacing;
 use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
@@ -55,6 +57,8 @@ pub struct Scheduler {
     queue: JobQueue,
     /// Which frame each job should come from.
     plan: HandOutPlan,
+    /// Who holds which job: the master's one record, shared with the connections.
+    held: Arc<HeldJobs>,
     /// Connections with unserved credits, served front first.
     demand: VecDeque<(ConnId, u32, Recipient<JobsAssigned>)>,
     links: SchedulerLinks,
@@ -67,16 +71,25 @@ pub struct Scheduler {
     discard_stale: bool,
 }
 
+/// Construction parameters of the scheduler.
+pub struct SchedulerConfig {
+    /// S: sets per frame.
+    pub sets: u32,
+    /// Jobs queued below which a new frame is added.
+    pub threshold: usize,
+    pub pacing: Pacing,
+    pub policy: RestartPolicy,
+}
+
 impl Scheduler {
     pub fn new(
-        sets: u32,
-        threshold: usize,
+        config: SchedulerConfig,
         state: Arc<SceneState>,
-        pacing: Pacing,
         links: SchedulerLinks,
         counters: Arc<Counters>,
-        policy: RestartPolicy,
+        held: Arc<HeldJobs>,
     ) -> Self {
+        let SchedulerConfig { sets, threshold, pacing, policy } = config;
         let plan = HandOutPlan::new(pacing);
         let mut queue = JobQueue::new(sets, threshold, state, 0);
         queue.set_quota(plan.quota(sets));
@@ -86,6 +99,7 @@ impl Scheduler {
             threshold,
             queue,
             plan,
+            held,
             demand: VecDeque::new(),
             links,
             supervision: Supervision::restarting(ActorKind::Scheduler, policy, counters.clone()),
@@ -170,9 +184,12 @@ impl Handler<WorkerLeft> for Scheduler {
         self.guarded(ctx, |s, _| {
             s.demand.retain(|(c, _, _)| *c != msg.conn);
             // Its jobs are lost: other sets of those frames make up their quota.
-            for (frame, _) in s.plan.left(msg.conn) {
+            // Jobs handed out while its end was on the way never reached it: lost too.
+            let late = s.held.lock().release(msg.conn);
+            for frame in msg.lost.into_iter().chain(late.iter().map(|h| h.frame)) {
                 s.queue.queue_more(frame, 1);
             }
+            s.plan.left(msg.conn);
             s.dispatch();
         });
     }
@@ -181,7 +198,7 @@ impl Handler<WorkerLeft> for Scheduler {
 impl Handler<JobAnswered> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: JobAnswered, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s, _| s.plan.answered(msg.conn, msg.frame, msg.set, Instant::now()));
+        self.guarded(ctx, |s, _| s.plan.answered(msg.conn, msg.handed_at, Instant::now()));
     }
 }
 
@@ -223,9 +240,10 @@ impl Scheduler {
         let quota = self.plan.quota(self.sets) as usize;
         // Enough frames in flight for every credit and held job of the grid, plus two, and
         // at a fixed rate as far ahead as the slowest worker's next result.
-        let window = (credits + self.plan.held_total()).div_ceil(quota) as u64
-            + 2
-            + self.plan.frames_ahead(now);
+        let window = {
+            let held = self.held.lock();
+            (credits + held.total()).div_ceil(quota) as u64 + 2 + self.plan.frames_ahead(&held, now)
+        };
         self.queue.set_frame_window(window.min(MAX_FRAME_WINDOW));
         for _ in 0..self.demand.len() {
             let Some((conn, credits, to)) = self.demand.pop_front() else { return };
@@ -248,19 +266,26 @@ impl Scheduler {
         let mut jobs = Vec::new();
         while jobs.len() < credits as usize {
             self.top_up();
-            let mut frame = self.plan.choose(conn, &self.queue.frames(), now);
-            while !frame.is_some_and(|f| self.plan.fits(conn, f, now)) {
+            let mut frame = self.choose(conn, now);
+            while !frame.is_some_and(|f| self.plan.fits(conn, self.held.lock().of(conn), f, now)) {
                 let Some(f) = self.queue.open_frame() else { break };
                 self.scheduled(f.frame, f.state);
-                frame = self.plan.choose(conn, &self.queue.frames(), now);
+                frame = self.choose(conn, now);
             }
             let Some(job) = frame.and_then(|f| self.queue.take_from(f)) else { break };
-            if self.plan.handed(conn, job.frame, job.set, now) {
+            let (frame, set, version) = (job.frame, job.set, job.state.version);
+            self.held.lock().hand(conn, HeldJob { frame, set, version, handed_at: now });
+            if self.plan.handed(conn, job.frame, now) {
                 self.links.started_to.do_send(FrameStarted { frame: job.frame });
             }
             jobs.push(job);
         }
         jobs
+    }
+
+    /// The frame the plan chooses for `conn`'s next job among the queued ones.
+    fn choose(&self, conn: ConnId, now: Instant) -> Option<FrameNo> {
+        self.plan.choose(conn, self.held.lock().of(conn), &self.queue.frames(), now)
     }
 
     /// Adds frames to the queue and tells the assembler about them.

@@ -3,13 +3,15 @@
 //! (`actors/tests/layout.rs`).
 //!
 //! - [`sets`]: the pixel sets (`SetTable`), derived the same way by master and workers;
-//! - [`job`]: one set of one frame with its scene state;
+//! - [`job`]: one set of one frame with its scene state; [`holdings`]: who holds which
+//!   job, the master's one record of it;
 //! - [`pacing`]: how frames are paced (the wait heuristic's parameters or a fixed rate);
 //! - [`packed_frame`]: a frame's accepted results, packed, and the frame closed for display;
 //! - [`workers`]: the table of connected workers (the status panel's rows);
 //! - [`counters`]: the master run's counters.
 
 pub mod counters;
+pub mod holdings;
 pub mod job;
 pub mod pacing;
 pub mod packed_frame;

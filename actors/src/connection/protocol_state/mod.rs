@@ -21,12 +21,13 @@ mod jobs;
 #[cfg(test)]
 mod tests;
 
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::{HashSet, VecDeque};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::connection::ConnectionConfig;
 use crate::scene::state::StateVersion;
+use crate::shared::holdings::HeldJob;
 use crate::wire::channel::Keys;
 use crate::wire::codec::ProtocolError;
 use crate::wire::integrity::ResultKey;
@@ -47,14 +48,15 @@ pub enum Action {
     Joined,
     /// Ask the scheduler for this many more jobs.
     RequestJobs(u32),
-    /// The worker paused; `first` when it was taking jobs until now (the jobs it held are
-    /// lost and the scheduler must forget it), not when it only changed its reason.
-    Paused { reason: PauseReason, first: bool },
+    /// The worker paused; `first` when it was taking jobs until now (the jobs it held,
+    /// `lost` by frame, are lost and the scheduler must forget it), not when it only
+    /// changed its reason.
+    Paused { reason: PauseReason, first: bool, lost: Vec<FrameNo> },
     /// The worker takes jobs again (its `Ready` follows).
     Resumed,
-    /// The answer to a job this connection holds: to the assembler, and the scheduler
-    /// measures the worker's job time from it.
-    Answered(JobResult),
+    /// The answer to a job this connection held since `handed_at`: to the assembler, and
+    /// the scheduler measures the worker's job time from it.
+    Answered { result: JobResult, handed_at: Instant },
     /// A second answer to a job already answered: dropped and counted here, the only
     /// place that knows.
     Duplicate { frame: FrameNo, set: SetNo },
@@ -91,9 +93,6 @@ pub struct ProtocolState {
     cores: u32,
     /// State versions already sent on this connection.
     sent_versions: HashSet<StateVersion>,
-    /// Jobs sent and not yet answered, with the version they name: the master's only
-    /// record of who holds which job (a result is checked against it, here, once).
-    held: HashMap<(FrameNo, SetNo), StateVersion>,
     answered: VecDeque<(FrameNo, SetNo)>,
     answered_set: HashSet<(FrameNo, SetNo)>,
     /// Credits passed to the scheduler and not yet filled.
@@ -116,7 +115,6 @@ impl ProtocolState {
             name: String::new(),
             cores: 0,
             sent_versions: HashSet::new(),
-            held: HashMap::new(),
             answered: VecDeque::new(),
             answered_set: HashSet::new(),
             requested: 0,
@@ -138,9 +136,15 @@ impl ProtocolState {
         self.cores
     }
 
-    /// Jobs sent and not yet answered (lost if the connection ends now).
+    /// Jobs sent and not yet answered (lost if the connection ends now), as the master's
+    /// one record of held jobs (`ConnectionConfig::held`) has them.
     pub fn held(&self) -> usize {
-        self.held.len()
+        self.config.held.lock().of(self.id).len()
+    }
+
+    /// The connection ends: every job it holds is lost, taken out of the record.
+    pub fn release_held(&mut self) -> Vec<HeldJob> {
+        self.config.held.lock().release(self.id)
     }
 
     /// Whether the handshake finished (the worker was counted).

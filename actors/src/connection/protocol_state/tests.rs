@@ -3,6 +3,7 @@
 use super::*;
 use crate::scene::asset_store::AssetStore;
 use crate::scene::state::{Camera, Resolution, SceneState};
+use crate::shared::holdings::HeldJobs;
 use crate::shared::job::Job;
 use crate::shared::sets::SetTable;
 use crate::shared::workers::WorkerTable;
@@ -24,6 +25,7 @@ fn config(secret: Option<&[u8]>) -> Arc<ConnectionConfig> {
         heartbeat: Duration::from_secs(1),
         peer_timeout: Duration::from_secs(10),
         workers: Arc::new(WorkerTable::default()),
+        held: Arc::new(HeldJobs::default()),
     })
 }
 
@@ -123,7 +125,7 @@ fn with_a_secret_only_the_encrypted_channel_under_the_same_secret_is_welcomed() 
     // Results need no tag of their own: the channel authenticated every byte.
     s.on_jobs(vec![job(0, 1, 1)], now);
     let out = s.on_message(answer(&s, &ResultKey::Channel, 0, 1, 1), now);
-    assert!(matches!(out[..], [Action::Answered(_)]), "{out:?}");
+    assert!(matches!(out[..], [Action::Answered { .. }]), "{out:?}");
 
     // A wrong secret: refused at its first message, nothing else sent.
     let mut s = ProtocolState::new(1, config(Some(SECRET)), now);
@@ -209,7 +211,7 @@ fn results_are_checked_once_answered_duplicate_or_unknown() {
     let (mut s, key) = welcomed(now);
     s.on_jobs(vec![job(3, 1, 1)], now);
     let out = s.on_message(answer(&s, &key, 3, 1, 1), now);
-    assert!(matches!(out[..], [Action::Answered(_)]), "{out:?}");
+    assert!(matches!(out[..], [Action::Answered { .. }]), "{out:?}");
     assert_eq!(s.held(), 0);
     let out = s.on_message(answer(&s, &key, 3, 1, 1), now);
     assert!(
@@ -258,11 +260,11 @@ fn a_paused_worker_loses_its_jobs_and_may_not_ask_for_more() {
     s.on_jobs(vec![job(0, 0, 1)], now);
     let reason = PauseReason::OwnerInput { seconds_ago: 1.0 };
     let out = s.on_message(WorkerMsg::Paused { reason: reason.clone() }, now);
-    assert_eq!(out, [Action::Paused { reason: reason.clone(), first: true }]);
+    assert_eq!(out, [Action::Paused { reason: reason.clone(), first: true, lost: vec![0] }]);
     assert_eq!(s.held(), 0, "the held job is lost");
     assert!(s.on_jobs(vec![job(0, 1, 1)], now).is_empty(), "no job reaches a paused worker");
     let again = s.on_message(WorkerMsg::Paused { reason: reason.clone() }, now);
-    assert_eq!(again, [Action::Paused { reason, first: false }]);
+    assert_eq!(again, [Action::Paused { reason, first: false, lost: vec![] }]);
     assert_eq!(s.on_message(WorkerMsg::Resumed, now), [Action::Resumed]);
     let out = s.on_message(WorkerMsg::Resumed, now);
     assert_eq!(rejection(&out), Some(&Rejection::NotPaused));
@@ -284,4 +286,20 @@ fn an_asset_not_in_the_manifest_is_refused() {
     let (mut s, _) = welcomed(now);
     let out = s.on_message(WorkerMsg::AssetRequest { hash: [3; 32] }, now);
     assert_eq!(rejection(&out).map(Rejection::kind), Some(RejectionKind::Asset));
+}
+
+#[test]
+fn the_one_record_of_held_jobs_follows_every_change_of_hands() {
+    let now = Instant::now();
+    let (mut s, key) = welcomed(now);
+    let held = |s: &ProtocolState| -> Vec<(FrameNo, SetNo)> {
+        s.config.held.lock().of(7).iter().map(|h| (h.frame, h.set)).collect()
+    };
+    s.on_jobs(vec![job(0, 0, 1), job(0, 1, 1), job(1, 0, 1)], now);
+    assert_eq!(held(&s), [(0, 0), (0, 1), (1, 0)]);
+    s.on_message(WorkerMsg::Superseded { frame: 0, set: 1 }, now);
+    s.on_message(answer(&s, &key, 0, 0, 1), now);
+    assert_eq!(held(&s), [(1, 0)], "answered and superseded jobs leave it");
+    assert_eq!(s.release_held().len(), 1, "the rest is lost when the connection ends");
+    assert!(held(&s).is_empty());
 }
