@@ -129,7 +129,7 @@ fn unauthenticated_peers_get_nothing_and_the_secret_never_crosses_the_wire() {
             "{name} was not told why it was refused: {got:?}"
         );
     }
-    assert_eq!(Counters::get(&m.counters().workers), 1, "an intruder counts as a worker");
+    assert_eq!(m.worker_counts().live, 1, "an intruder counts as a worker");
 
     // The honest worker goes on; every pixel shown is from its frame.
     assert!(m.wait_for_frames(m.report().shown + 3, Duration::from_secs(20)));

@@ -41,7 +41,7 @@ use crate::scheduler::{Scheduler, SchedulerConfig, SchedulerLinks};
 use crate::shared::counters::Counters;
 use crate::shared::holdings::HeldJobs;
 use crate::shared::sets::SetTable;
-use crate::shared::workers::WorkerTable;
+use crate::shared::workers::{WorkerCounts, WorkerTable};
 use crate::supervision::{
     InjectPanic, PanicInjection, PanicPlan, PeerPolicy, RestartPolicy, Supervised, Supervision,
 };
@@ -368,6 +368,11 @@ impl MasterHandle {
     /// The workers connected now, with their rates.
     pub fn workers(&self) -> Vec<crate::shared::workers::WorkerInfo> {
         self.workers.list()
+    }
+
+    /// How many connected workers take jobs and how many are paused, now.
+    pub fn worker_counts(&self) -> WorkerCounts {
+        self.workers.counts()
     }
 
     /// Applies an edit that happened at `at` (an input event), without waiting: the

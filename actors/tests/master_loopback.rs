@@ -16,6 +16,7 @@ use gridlight_actors::counters::Counters;
 use gridlight_actors::edit::{CameraEdit, Edit};
 use gridlight_actors::master::{start, ActorKind, MasterHandle};
 use gridlight_actors::protocol::*;
+use gridlight_actors::workers::WorkerCounts;
 
 fn master() -> (MasterHandle, std::sync::mpsc::Receiver<gridlight_actors::master::ShownFrame>) {
     let (sink, rx) = collect_sink();
@@ -394,12 +395,12 @@ fn a_paused_worker_is_counted_apart_gets_no_jobs_and_comes_back_when_it_resumes(
     p.handshake(None).expect("welcome");
     p.send(&WorkerMsg::Ready { credits: 2 });
     let (held_frame, held_set, _, _) = p.next_job().expect("a job before pausing");
-    eventually("two live workers", || Counters::get(&c.workers) == 2);
+    eventually("two live workers", || m.worker_counts() == WorkerCounts { live: 2, paused: 0 });
 
     let reason = PauseReason::OwnerCpu { percent: 87.0, window_s: 10.0 };
     p.send(&WorkerMsg::Paused { reason: reason.clone() });
     eventually("the worker counted as paused", || {
-        Counters::get(&c.paused_workers) == 1 && Counters::get(&c.workers) == 1
+        m.worker_counts() == WorkerCounts { live: 1, paused: 1 }
     });
     let listed = m.workers();
     assert_eq!(listed.len(), 2, "a paused worker stays listed");
@@ -429,7 +430,7 @@ fn a_paused_worker_is_counted_apart_gets_no_jobs_and_comes_back_when_it_resumes(
     let (frame, set, _, _) = p.next_job().expect("a job after resuming");
     assert_ne!((frame, set), (held_frame, held_set), "a job held at the pause was redone");
     eventually("the worker live again", || {
-        Counters::get(&c.paused_workers) == 0 && Counters::get(&c.workers) == 2
+        m.worker_counts() == WorkerCounts { live: 2, paused: 0 }
     });
     assert!(m.workers().iter().all(|w| w.paused.is_none()));
     stop.store(true, Ordering::Relaxed);
@@ -453,10 +454,7 @@ fn credits_or_results_while_paused_and_resuming_unpaused_end_the_connection() {
     q.send(&WorkerMsg::Resumed);
     let reason = q.expect_rejected();
     assert!(reason.contains("Resumed while the worker is not paused"), "{reason}");
-    eventually("no worker counted", || {
-        Counters::get(&m.counters().workers) == 0
-            && Counters::get(&m.counters().paused_workers) == 0
-    });
+    eventually("no worker counted", || m.worker_counts() == WorkerCounts::default());
 }
 
 #[test]

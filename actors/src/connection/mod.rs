@@ -151,9 +151,6 @@ impl Connection {
         let frames = lost.iter().map(|h| h.frame).collect();
         self.links.left_to.do_send(WorkerLeft { conn: self.id, lost: frames });
         if self.protocol.welcomed() {
-            let c = &self.counters;
-            let count = if self.protocol.paused() { &c.paused_workers } else { &c.workers };
-            count.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
             self.config.workers.left(self.id);
         }
         Counters::add(&self.counters.jobs_lost, lost.len() as u64);
@@ -301,7 +298,6 @@ impl Connection {
                     self.keys.install(keys, Some(self.counters.cipher_ns.clone()))
                 }
                 Action::Joined => {
-                    Counters::add(&self.counters.workers, 1);
                     let (name, cores) = (self.protocol.name(), self.protocol.cores());
                     self.config.workers.joined(self.id, name, cores);
                     self.config.workers.located(self.id, &self.peer.ip().to_string());
@@ -317,15 +313,11 @@ impl Connection {
                         tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
                             %reason, "worker paused");
                         self.links.left_to.do_send(WorkerLeft { conn: self.id, lost });
-                        Counters::add(&self.counters.paused_workers, 1);
-                        self.counters.workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
                     }
                     self.config.workers.paused(self.id, reason);
                 }
                 Action::Resumed => {
                     tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer, "worker resumed");
-                    self.counters.paused_workers.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
-                    Counters::add(&self.counters.workers, 1);
                     self.config.workers.resumed(self.id);
                 }
                 Action::Answered { result, handed_at } => {

@@ -245,6 +245,7 @@ impl Presenter {
         let version = closed.state.version;
         self.shown += 1;
         let c = &self.counters;
+        let workers = self.workers.counts();
         Counters::add(&c.results_used, u64::from(closed.back));
         let (used, accepted, late) = (
             Counters::get(&c.results_used),
@@ -264,13 +265,9 @@ impl Presenter {
             dropped_late: late,
             dropped_duplicate: Counters::get(&c.dropped_duplicate),
             dropped_unknown: Counters::get(&c.dropped_unknown),
-            workers: Counters::get(&c.workers),
-            paused_workers: Counters::get(&c.paused_workers),
-            paused: if Counters::get(&c.paused_workers) > 0 {
-                self.workers.paused_list()
-            } else {
-                Vec::new()
-            },
+            workers: workers.live,
+            paused_workers: workers.paused,
+            paused: if workers.paused > 0 { self.workers.paused_list() } else { Vec::new() },
             bytes_in: Counters::get(&c.bytes_in),
             bytes_out: Counters::get(&c.bytes_out),
             shown: self.shown,

@@ -2,7 +2,8 @@
 //!
 //! Plain atomics written by the actor that owns the event (connections count bytes, the
 //! assembler counts dropped results, the scheduler jobs handed out) and read by the
-//! presenter when it builds a frame's statistics.
+//! presenter when it builds a frame's statistics. How many workers are connected is not a
+//! counter: the worker table counts its rows (`WorkerTable::counts`).
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -19,10 +20,6 @@ pub struct Counters {
     /// Nanoseconds every encrypted connection's codecs spent in the channel's cipher
     /// (shared with them like the byte counters).
     pub cipher_ns: Arc<AtomicU64>,
-    /// Connections that passed the handshake, have not ended and are not paused.
-    pub workers: AtomicU64,
-    /// Connections whose worker paused (its desk's owner is active) and has not resumed.
-    pub paused_workers: AtomicU64,
     pub dropped_late: AtomicU64,
     pub dropped_duplicate: AtomicU64,
     pub dropped_unknown: AtomicU64,

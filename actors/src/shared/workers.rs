@@ -3,7 +3,8 @@
 //! whether (and why) a worker is paused. Connection actors write their own row (join, each
 //! accepted result, pause, resume, end), the assembler counts late results; readers get a
 //! snapshot. Rows exist only for live connections, so the table is
-//! bounded by the connection cap.
+//! bounded by the connection cap. How many workers are live or paused is counted from the
+//! rows ([`WorkerTable::counts`]), never kept beside them.
 
 use std::collections::BTreeMap;
 use std::sync::Mutex;
@@ -37,6 +38,15 @@ pub struct WorkerInfo {
     pub last_seen: Duration,
     /// Why it is paused (its desk's owner is active); `None` while it takes jobs.
     pub paused: Option<PauseReason>,
+}
+
+/// How many connected workers take jobs and how many are paused, as the table has them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WorkerCounts {
+    /// Connected, past the handshake, taking jobs.
+    pub live: u64,
+    /// Connected but paused (their desks' owners are active).
+    pub paused: u64,
 }
 
 /// A paused worker as the per-frame statistics name it.
@@ -146,6 +156,13 @@ impl WorkerTable {
         }
     }
 
+    /// Live and paused workers now: counted from the rows, never kept beside them.
+    pub fn counts(&self) -> WorkerCounts {
+        let rows = self.lock();
+        let paused = rows.values().filter(|r| r.paused.is_some()).count() as u64;
+        WorkerCounts { live: rows.len() as u64 - paused, paused }
+    }
+
     /// The paused workers, by connection id.
     pub fn paused_list(&self) -> Vec<PausedWorker> {
         self.lock()
@@ -233,11 +250,15 @@ mod tests {
         assert_eq!(list.len(), 2, "paused workers are listed");
         assert_eq!(list[0].paused, Some(PauseReason::OwnerInput { seconds_ago: 3.0 }));
         assert_eq!(list[1].paused, None);
+        assert_eq!(t.counts(), WorkerCounts { live: 1, paused: 1 });
         let paused = t.paused_list();
         assert_eq!(paused.len(), 1);
         assert_eq!((paused[0].name.as_str(), paused[0].kind), ("desk", "owner_input"));
         assert!(paused[0].reason.contains("keyboard or mouse"), "{}", paused[0].reason);
         t.resumed(1);
+        assert_eq!(t.counts(), WorkerCounts { live: 2, paused: 0 });
+        t.left(2);
+        assert_eq!(t.counts(), WorkerCounts { live: 1, paused: 0 });
         assert!(t.paused_list().is_empty());
         assert_eq!(t.list()[0].paused, None);
     }

@@ -138,7 +138,7 @@ fn measure(
     let before = Snapshot::take(&bed, &handle)?;
     std::thread::sleep(Duration::from_secs_f64(opts.seconds));
     let after = Snapshot::take(&bed, &handle)?;
-    let workers_counted = Counters::get(&handle.counters().workers);
+    let workers_counted = handle.worker_counts().live;
     let results_by_host = results_by_host(&handle);
     drop(workers);
     handle.stop().with_context(|| format!("{label}: stopping the master"))?;
@@ -218,11 +218,11 @@ fn start_workers(
 /// Waits for every connection and then for the warm-up frames.
 fn wait_for(handle: &MasterHandle, connections: u64) -> anyhow::Result<()> {
     let deadline = Instant::now() + WARMUP_TIMEOUT;
-    while Counters::get(&handle.counters().workers) < connections {
+    while handle.worker_counts().live < connections {
         if Instant::now() > deadline {
             bail!(
                 "only {} of {connections} worker connections joined in {WARMUP_TIMEOUT:?}",
-                Counters::get(&handle.counters().workers)
+                handle.worker_counts().live
             );
         }
         std::thread::sleep(Duration::from_millis(20));

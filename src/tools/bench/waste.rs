@@ -112,10 +112,10 @@ fn measure(
     let children = spawn_null_workers(exe, handle.local_addr(), cache, &spec)?;
 
     let deadline = Instant::now() + WARMUP_TIMEOUT;
-    while Counters::get(&handle.counters().workers) < u64::from(workers) {
+    while handle.worker_counts().live < u64::from(workers) {
         if Instant::now() >= deadline {
             bail!("{workers} workers: only {} connected in {WARMUP_TIMEOUT:?}", {
-                Counters::get(&handle.counters().workers)
+                handle.worker_counts().live
             });
         }
         std::thread::sleep(Duration::from_millis(20));

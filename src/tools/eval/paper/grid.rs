@@ -265,11 +265,11 @@ pub fn run(exe: &Path, prepared: &Prepared, run: &Run) -> anyhow::Result<Outcome
 
     let deadline = Instant::now() + WARMUP_TIMEOUT;
     let want = u64::from(run.availability.at(0).min(peak));
-    while Counters::get(&handle.counters().workers) < want {
+    while handle.worker_counts().live < want {
         if Instant::now() >= deadline {
             bail!(
                 "only {} of {want} simulated workers connected",
-                Counters::get(&handle.counters().workers)
+                handle.worker_counts().live
             );
         }
         std::thread::sleep(Duration::from_millis(20));
