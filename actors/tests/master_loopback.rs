@@ -274,6 +274,39 @@ fn an_edit_sends_the_new_state_before_the_first_job_naming_it() {
     panic!("the new state never arrived");
 }
 
+/// The edit-to-display latency: an edit made at `at` is counted once, on the first shown
+/// frame whose state includes it, from `at` (the scene holder tells the presenter when
+/// each edit happened); frames before and after it carry none.
+#[test]
+fn an_edit_is_timed_once_on_the_first_shown_frame_of_its_state() {
+    let (m, rx) = master();
+    let stop = Arc::new(AtomicBool::new(false));
+    let worker = null_worker(m.local_addr(), stop.clone());
+    let before = m.state().expect("state").version;
+    let at = std::time::Instant::now() - Duration::from_millis(50);
+    let moved = Vec3::new(0.0, 2.0, 5.0);
+    m.edit_made(Edit::Camera(CameraEdit { position: Some(moved), ..Default::default() }), at);
+    let mut timed = Vec::new();
+    let mut after = 0;
+    while after < 3 {
+        let frame = rx.recv_timeout(Duration::from_secs(30)).expect("frames keep coming");
+        let stats = frame.stats;
+        if stats.state_version == before {
+            assert!(stats.edits_at.is_empty(), "a frame of the old state shows no edit");
+        } else if timed.is_empty() {
+            timed = stats.edit_latency_ms.clone();
+            assert_eq!(stats.edits_at, [at], "the edit's own instant");
+        } else {
+            assert!(stats.edits_at.is_empty(), "the edit was counted again");
+            after += 1;
+        }
+    }
+    assert!(timed.len() == 1 && timed[0] >= 50.0, "{timed:?}");
+    stop.store(true, Ordering::Relaxed);
+    drop(m);
+    worker.join().expect("worker");
+}
+
 #[test]
 fn assets_are_served_by_manifest_hash_only() {
     let dir = std::env::temp_dir().join(format!("gl-master-assets-{}", std::process::id()));

@@ -267,10 +267,7 @@ pub fn run(exe: &Path, prepared: &Prepared, run: &Run) -> anyhow::Result<Outcome
     let want = u64::from(run.availability.at(0).min(peak));
     while handle.worker_counts().live < want {
         if Instant::now() >= deadline {
-            bail!(
-                "only {} of {want} simulated workers connected",
-                handle.worker_counts().live
-            );
+            bail!("only {} of {want} simulated workers connected", handle.worker_counts().live);
         }
         std::thread::sleep(Duration::from_millis(20));
     }
