@@ -261,21 +261,20 @@ fn cases() -> Vec<Case> {
             },
         },
         Case {
-            name: "result whose radiance was altered after it was tagged",
-            kind: "corrupt",
-            expect: Expect::Rejected("integrity check"),
+            name: "result whose record was altered on the wire",
+            kind: "decrypt",
+            expect: Expect::Rejected("failed authentication"),
             act: |p, _| {
                 let (frame, set, state_version) = first_job(p);
                 let n = table().set_len(set);
                 let radiance = pack(&vec![Vec3::splat(frame_value(frame)); n]).expect("pack");
-                let WorkerMsg::Result(mut r) = p.result(frame, set, state_version, radiance) else {
-                    unreachable!("Peer::result builds a result")
-                };
-                // One mantissa bit of one pixel, as a bad link would flip it: still a
-                // valid RGB9E5 word, so only the tag can tell.
-                let PackedRadiance::Rgb9e5(words) = &mut r.radiance;
-                words[n / 2] ^= 1 << 3;
-                p.send(&WorkerMsg::Result(r));
+                let result = p.result(frame, set, state_version, radiance);
+                // One bit of the sealed record's ciphertext, as a bad link (or an attacker
+                // on the path) would flip it: only the channel's tag can tell.
+                let mut bytes = p.encode(&result);
+                let middle = bytes.len() / 2;
+                bytes[middle] ^= 1 << 3;
+                p.send_raw(&bytes);
             },
         },
         Case {

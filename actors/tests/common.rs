@@ -99,8 +99,16 @@ impl Peer {
 
     /// Sends (a record of the channel once encrypted); false when the master went away.
     pub fn try_send(&mut self, msg: &WorkerMsg) -> bool {
+        let frame = self.encode(msg);
+        self.stream.write_all(&frame).is_ok()
+    }
+
+    /// The bytes `msg` takes on the wire (sealed records once encrypted), unsent: a test
+    /// may alter them and send them with [`Peer::send_raw`].
+    pub fn encode(&mut self, msg: &WorkerMsg) -> BytesMut {
         let mut frame = BytesMut::new();
-        self.codec.encode(msg, &mut frame).is_ok() && self.stream.write_all(&frame).is_ok()
+        self.codec.encode(msg, &mut frame).expect("encode");
+        frame
     }
 
     pub fn send_raw(&mut self, bytes: &[u8]) {
