@@ -327,6 +327,7 @@ fn wire(
         peer_timeout: config.peer_timeout,
         workers,
         held,
+        refusal_lines: Default::default(),
     });
     // Connections report their end to the listener, their supervisor.
     let listener_ctx = Context::<Listener>::new();
@@ -337,6 +338,7 @@ fn wire(
         answered_to: scheduler.clone().recipient(),
         results_to: assembler.clone().recipient(),
         ended_to: listener_addr.clone().recipient(),
+        authenticated_to: listener_addr.clone().recipient(),
     };
     let policy = (config.restart, config.peer_backoff);
     let listener =

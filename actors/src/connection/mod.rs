@@ -26,7 +26,8 @@ use actix::prelude::*;
 use tokio::net::tcp::OwnedWriteHalf;
 
 use crate::messages::{
-    ConnectionEnded, JobAnswered, JobsAssigned, Kill, ResultArrived, WorkerLeft, WorkerReady,
+    ConnectionAuthenticated, ConnectionEnded, HandshakeExpired, JobAnswered, JobsAssigned, Kill,
+    ResultArrived, WorkerLeft, WorkerReady,
 };
 use crate::scene::asset_store::AssetStore;
 use crate::shared::counters::Counters;
@@ -59,6 +60,9 @@ pub struct ConnectionConfig {
     pub workers: Arc<WorkerTable>,
     /// Who holds which job: the master's one record, shared with the scheduler.
     pub held: Arc<HeldJobs>,
+    /// Lines naming a peer rejected before it authenticated, limited per period (the
+    /// listener summarises them all).
+    pub refusal_lines: crate::shared::line_budget::LineBudget,
 }
 
 /// Where a connection's messages go.
@@ -70,6 +74,8 @@ pub struct ConnectionLinks {
     pub answered_to: Recipient<JobAnswered>,
     pub results_to: Recipient<ResultArrived>,
     pub ended_to: Recipient<ConnectionEnded>,
+    /// The listener counts connections that have not authenticated yet.
+    pub authenticated_to: Recipient<ConnectionAuthenticated>,
 }
 
 type Writer = FramedWrite<MasterMsg, CountedWrite<OwnedWriteHalf>, MasterChannelCodec>;
@@ -99,6 +105,8 @@ pub struct Connection {
     /// The worker's name from its `Hello`, the record's key; `None` before it, and
     /// when the record refused the worker (a refusal is not a new failure).
     worker: Option<String>,
+    /// The kind of the rejection this connection was closed with.
+    rejected: Option<RejectionKind>,
     supervision: Supervision,
 }
 
@@ -124,6 +132,7 @@ impl Connection {
             keys: outbox.keys,
             counters,
             failed: false,
+            rejected: None,
             peers,
             worker: None,
             supervision,
@@ -155,7 +164,8 @@ impl Connection {
         }
         Counters::add(&self.counters.jobs_lost, lost.len() as u64);
         let worker = self.worker.take();
-        self.links.ended_to.do_send(ConnectionEnded { conn: self.id, failed: self.failed, worker });
+        let (conn, failed, rejected) = (self.id, self.failed, self.rejected);
+        self.links.ended_to.do_send(ConnectionEnded { conn, failed, worker, rejected });
         tracing::info!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
             jobs_lost = lost.len(), "connection closed");
     }
@@ -248,7 +258,9 @@ impl Connection {
 impl WriteHandler<ProtocolError> for Connection {
     fn error(&mut self, err: ProtocolError, ctx: &mut Context<Self>) -> Running {
         self.guarded(ctx, |c, _| {
-            tracing::warn!(conn = c.id, worker = %c.protocol.name(), peer = %c.peer, cause = %err, "write failed");
+            if c.protocol.welcomed() {
+                tracing::warn!(conn = c.id, worker = %c.protocol.name(), peer = %c.peer, cause = %err, "write failed");
+            }
             c.failed = true;
         });
         Running::Stop
@@ -280,6 +292,16 @@ impl Handler<Kill> for Connection {
     }
 }
 
+impl Handler<HandshakeExpired> for Connection {
+    type Result = ();
+    fn handle(&mut self, _: HandshakeExpired, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |c, ctx| {
+            tracing::debug!(conn = c.id, peer = %c.peer, "handshake deadline passed");
+            ctx.stop();
+        });
+    }
+}
+
 impl Handler<InjectPanic> for Connection {
     type Result = ();
     fn handle(&mut self, _: InjectPanic, ctx: &mut Context<Self>) {
@@ -302,6 +324,7 @@ impl Connection {
                     self.config.workers.joined(self.id, name, cores);
                     self.config.workers.located(self.id, &self.peer.ip().to_string());
                     tracing::info!(conn = self.id, worker = %name, peer = %self.peer, "worker joined");
+                    self.links.authenticated_to.do_send(ConnectionAuthenticated(self.id));
                 }
                 Action::RequestJobs(credits) => self.links.ready_to.do_send(WorkerReady {
                     conn: self.id,
@@ -345,8 +368,18 @@ impl Connection {
 
     /// Sends `Rejected` naming the problem, then closes once it is written.
     fn close_rejected(&mut self, why: Rejection, ctx: &mut Context<Self>) {
-        tracing::warn!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
-            reason = %why, kind = why.kind().as_str(), "connection rejected");
+        // Before it authenticated, the listener's summary counts it (a flood writes no
+        // line per peer); after, the line names the worker.
+        if self.protocol.welcomed() {
+            tracing::warn!(conn = self.id, worker = %self.protocol.name(), peer = %self.peer,
+                reason = %why, kind = why.kind().as_str(), "connection rejected");
+        } else if self.config.refusal_lines.allow(Instant::now()) {
+            tracing::info!(conn = self.id, peer = %self.peer, reason = %why,
+                kind = why.kind().as_str(), "connection rejected");
+        } else {
+            tracing::debug!(conn = self.id, peer = %self.peer, reason = %why, "connection rejected");
+        }
+        self.rejected = Some(why.kind());
         Counters::add(&self.counters.connections_rejected, 1);
         self.counters.note_rejection(why.kind());
         self.failed = true;

@@ -9,9 +9,15 @@
 //! worker whose connections keep ending on errors is refused for a while
 //! ([`PeerBackoff`]): the listener records each failed end, the connection checks the
 //! worker's name against the record when its `Hello` arrives.
+//!
+//! Against floods ([`admission`]): connections that have not authenticated are capped per
+//! address and overall and ended at a deadline, and refusals are logged as periodic
+//! summaries (a count per kind and address), not one line per peer.
+
+pub mod admission;
 
 use std::collections::HashMap;
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -21,17 +27,22 @@ use tokio::net::{TcpListener, TcpStream};
 use tokio_util::codec::FramedRead;
 
 use crate::connection::{Connection, ConnectionConfig, ConnectionLinks, Outbox};
-use crate::messages::{ConnectionEnded, Kill, KillConnection, ListConnections, PanicConnection};
+use crate::messages::{
+    ConnectionAuthenticated, ConnectionEnded, HandshakeExpired, Kill, KillConnection,
+    ListConnections, PanicConnection,
+};
 use crate::shared::counters::Counters;
 use crate::supervision::{
-    ActorKind, Guard, InjectPanic, PeerBackoff, PeerPolicy, RestartPolicy, Supervised, Supervision,
+    ActorKind, Guard, GuardedTimers, InjectPanic, PeerBackoff, PeerPolicy, RestartPolicy,
+    Supervised, Supervision,
 };
 use crate::wire::channel_codec::{KeySlot, MasterChannelCodec};
 use crate::wire::codec::to_frame;
 use crate::wire::counted_io::{CountedRead, CountedWrite};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::MasterMsg;
-use crate::wire::rejection::Rejection;
+use crate::wire::rejection::{Rejection, RejectionKind};
+use admission::{Admission, RefusalLog, Refused, HANDSHAKE_DEADLINE, SUMMARY_EVERY};
 
 /// Internal: one accepted socket (or accept error).
 #[derive(Message)]
@@ -50,6 +61,10 @@ pub struct Listener {
     counters: Arc<Counters>,
     /// Failed ends per worker, shared with the connections that check it.
     peers: Arc<Mutex<PeerBackoff>>,
+    /// Pending connections by address, and the authenticated count.
+    admission: Admission,
+    /// Refusals since the last summary.
+    refusals: RefusalLog,
     supervision: Supervision,
 }
 
@@ -73,6 +88,8 @@ impl Listener {
             supervision: Supervision::restarting(ActorKind::Listener, policy.0, counters.clone()),
             counters,
             peers: Arc::new(Mutex::new(PeerBackoff::new(policy.1))),
+            admission: Admission::default(),
+            refusals: RefusalLog::default(),
         }
     }
 }
@@ -93,6 +110,7 @@ impl Supervised for Listener {
     /// Starts accepting (once: the socket moves into the accept stream).
     fn on_start(&mut self, ctx: &mut Context<Self>) {
         let Some(socket) = self.socket.take() else { return };
+        ctx.run_interval_guarded(SUMMARY_EVERY, |l, _| l.summarise());
         let accepts = futures::stream::unfold(socket, |s| async move {
             let r = s.accept().await;
             Some((Accepted(r), s))
@@ -108,13 +126,13 @@ impl Supervised for Listener {
 impl Handler<Accepted> for Listener {
     type Result = ();
     fn handle(&mut self, msg: Accepted, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |l, _| l.accepted(msg));
+        self.guarded(ctx, |l, ctx| l.accepted(msg, ctx));
     }
 }
 
 impl Listener {
-    /// Starts a connection actor for an accepted socket, or refuses it at the cap.
-    fn accepted(&mut self, msg: Accepted) {
+    /// Starts a connection actor for an accepted socket, or refuses it at a cap.
+    fn accepted(&mut self, msg: Accepted, ctx: &mut Context<Self>) {
         let (stream, peer) = match msg.0 {
             Ok(s) => s,
             Err(e) => {
@@ -122,8 +140,8 @@ impl Listener {
                 return;
             }
         };
-        if self.conns.len() >= self.max_connections {
-            tracing::warn!(%peer, cap = self.max_connections, "connection refused: too many connections");
+        if let Err(why) = self.admission.admit(peer.ip(), self.max_connections) {
+            self.refusals.note(why, peer.ip());
             Counters::add(&self.counters.connections_rejected, 1);
             let why = Rejection::Full { max: self.max_connections };
             self.counters.note_rejection(why.kind());
@@ -149,6 +167,40 @@ impl Listener {
             Connection::new(id, peer, outbox, config, links, counters, peers).with_faults(faults)
         });
         self.conns.insert(id, addr);
+        self.admission.opened(id, peer.ip());
+        ctx.run_later_guarded(HANDSHAKE_DEADLINE, move |l, _| l.deadline(id));
+    }
+
+    /// Ends connection `id` if it has not authenticated by now.
+    fn deadline(&mut self, id: ConnId) {
+        let Some(ip) = self.admission.pending(id) else { return };
+        if let Some(conn) = self.conns.get(&id) {
+            self.refusals.note(Refused::Deadline, ip);
+            Counters::add(&self.counters.connections_rejected, 1);
+            self.counters.note_rejection(RejectionKind::Timeout);
+            conn.do_send(HandshakeExpired);
+        }
+    }
+
+    /// One warning line per kind and address refused since the last summary.
+    fn summarise(&mut self) {
+        for (why, addr, count) in self.refusals.take() {
+            tracing::warn!(%addr, kind = why.as_str(), count, every_s = SUMMARY_EVERY.as_secs(),
+                "connections refused (summary)");
+        }
+    }
+
+    fn ended_pending(&mut self, ip: IpAddr, rejected: Option<RejectionKind>) {
+        if let Some(kind) = rejected {
+            self.refusals.note(Refused::Rejected(kind.as_str()), ip);
+        }
+    }
+}
+
+impl Handler<ConnectionAuthenticated> for Listener {
+    type Result = ();
+    fn handle(&mut self, msg: ConnectionAuthenticated, ctx: &mut Context<Self>) {
+        self.guarded(ctx, |l, _| l.admission.authenticated(msg.0));
     }
 }
 
@@ -157,6 +209,9 @@ impl Handler<ConnectionEnded> for Listener {
     fn handle(&mut self, msg: ConnectionEnded, ctx: &mut Context<Self>) {
         self.guarded(ctx, |l, _| {
             l.conns.remove(&msg.conn);
+            if let Some(ip) = l.admission.closed(msg.conn) {
+                l.ended_pending(ip, msg.rejected);
+            }
             if !msg.failed {
                 return;
             }

@@ -4,6 +4,7 @@
 use actix::prelude::*;
 
 use crate::wire::protocol::ConnId;
+use crate::wire::rejection::RejectionKind;
 
 /// To the listener: this connection ended; `failed` when it ended on an error.
 #[derive(Message)]
@@ -14,7 +15,21 @@ pub struct ConnectionEnded {
     /// The worker's name from its `Hello`: the per-peer back-off's key (`None` before
     /// the `Hello`, and for a connection that back-off refused).
     pub worker: Option<String>,
+    /// The kind of the rejection it ended with, if it was rejected.
+    pub rejected: Option<RejectionKind>,
 }
+
+/// To the listener: this connection authenticated (its worker was welcomed); it no longer
+/// counts against the caps on pending connections.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct ConnectionAuthenticated(pub ConnId);
+
+/// To a connection, from the listener: the handshake's deadline passed before it
+/// authenticated; it ends without a word (the listener's summary counts it).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct HandshakeExpired;
 
 /// Test hook: end connection `conn` abruptly. Answers whether it existed.
 #[derive(Message)]

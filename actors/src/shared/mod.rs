@@ -13,6 +13,7 @@
 pub mod counters;
 pub mod holdings;
 pub mod job;
+pub mod line_budget;
 pub mod pacing;
 pub mod packed_frame;
 pub mod sets;

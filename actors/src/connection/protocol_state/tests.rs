@@ -26,6 +26,7 @@ fn config(secret: Option<&[u8]>) -> Arc<ConnectionConfig> {
         peer_timeout: Duration::from_secs(10),
         workers: Arc::new(WorkerTable::default()),
         held: Arc::new(HeldJobs::default()),
+        refusal_lines: Default::default(),
     })
 }
 
