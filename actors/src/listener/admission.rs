@@ -202,7 +202,7 @@ mod tests {
         assert!(summary.contains(&(Refused::Deadline, ip(2), 500)));
         assert!(summary.contains(&(Refused::Rejected("bad_frame"), ip(2), 500)));
         assert!(log.take().is_empty());
-        for i in 0..(MAX_SUMMARY_PAIRS as u32 + 50) {
+        for i in 1..=(MAX_SUMMARY_PAIRS as u32 + 50) {
             log.note(Refused::Deadline, IpAddr::from(i.to_be_bytes()));
         }
         assert_eq!(log.take().len(), MAX_SUMMARY_PAIRS + 1, "bounded");
