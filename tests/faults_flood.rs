@@ -117,6 +117,13 @@ fn an_honest_worker_is_welcomed_during_a_flood_and_refusals_are_summarised() {
     let opened_by_then = flood.opened();
     assert!(opened_by_then >= n as u64 / 2, "the flood did not happen");
     master.wait_more_frames(3);
+    let warns_by_then = warn_lines(&master.proc.stderr()).len();
+    eprintln!(
+        "flood: {n} connections kept open from 127.0.0.2, {opened_by_then} opened when the honest \
+         worker was welcomed {:.2} s after it started; {warns_by_then} master WARN lines over {:.1} s",
+        welcomed_after.as_secs_f64(),
+        started.elapsed().as_secs_f64()
+    );
 
     // The refusals so far appear as summaries: a count per kind and address.
     let summary = eventually("a summary of the refusals", || {
@@ -128,11 +135,10 @@ fn an_honest_worker_is_welcomed_during_a_flood_and_refusals_are_summarised() {
     let log = master.proc.stderr();
     let warns = warn_lines(&log);
     eprintln!(
-        "flood: {n} connections kept open from 127.0.0.2, {opened_by_then} opened when the honest \
-         worker was welcomed {:.2} s after it started; {} master WARN lines over {:.1} s",
-        welcomed_after.as_secs_f64(),
+        "flood: {} master WARN lines over {:.1} s (first summary included), {} connections opened",
         warns.len(),
-        started.elapsed().as_secs_f64()
+        started.elapsed().as_secs_f64(),
+        flood.opened()
     );
     assert!(field(&summary, "count").is_some_and(|c| c > 1), "{summary}");
     let per_peer = warns.iter().filter(|l| l.contains("127.0.0.2:")).count();
