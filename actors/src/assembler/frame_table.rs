@@ -177,6 +177,11 @@ impl FrameTable {
         })
     }
 
+    /// The newest frame in flight.
+    pub fn newest(&self) -> Option<FrameNo> {
+        self.frames.keys().next_back().copied()
+    }
+
     /// Whether a frame after `frame` has results.
     pub fn later_has_results(&self, frame: FrameNo) -> bool {
         self.frames.range(frame + 1..).any(|(_, o)| o.back > 0)

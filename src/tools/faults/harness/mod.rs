@@ -46,6 +46,10 @@ pub enum HarnessError {
     Files(std::io::Error),
 }
 
+/// Longest time without a shown frame while a worker with a healthy link is alive: the
+/// soak's limit (issue 42: the screen was blank up to 4.6 s after an assembler restart).
+pub const MAX_GAP: Duration = Duration::from_secs(2);
+
 /// How the harness runs.
 #[derive(Clone, Debug)]
 pub struct HarnessConfig {
@@ -80,7 +84,7 @@ impl HarnessConfig {
             render_delay_ms: 2,
             heartbeat: Duration::from_millis(500),
             peer_timeout: Duration::from_secs(2),
-            max_gap: Duration::from_secs(10),
+            max_gap: MAX_GAP,
             proxy: true,
         }
     }
