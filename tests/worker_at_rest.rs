@@ -2,6 +2,8 @@
 //! none` nothing at all (the assets it fetched stay in its memory), and with
 //! `--forget-on-exit` nothing of the scene it rendered once it leaves the grid (SIGTERM,
 //! or the master gone), while another scene's entries in the same cache stay.
+//! Unix only: it stops the worker with SIGTERM.
+#![cfg(unix)]
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
