@@ -1,4 +1,4 @@
-//! Which frame a worker's next job comes from (DESIGN.md decision 8): pure logic behind
+//! Which frame a worker's next job comes from (docs/design.md, decision 8): pure logic behind
 //! the scheduler.
 //!
 //! A result is used only if it arrives before its frame is displayed; a late one was
