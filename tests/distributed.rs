@@ -402,6 +402,7 @@ fn processes_mentioning(needle: &str) -> Vec<u32> {
     found
 }
 
+/// Also checks `--resolution`: the frames have the command line's size, not the file's 48×32.
 #[test]
 fn the_demo_renders_with_child_worker_processes_and_leaves_none_behind() {
     let dir = tempfile::tempdir().unwrap();
@@ -456,6 +457,8 @@ transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scal
             "3",
             "--sets",
             "8",
+            "--resolution",
+            "40x24",
             "--out",
             out.to_str().unwrap(),
         ],
@@ -470,7 +473,7 @@ transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scal
     for s in &lines {
         let png = out.join(format!("frame-{:06}.png", u(s, "frame")));
         let img = image::open(&png).unwrap_or_else(|e| panic!("{}: {e}", png.display())).to_rgb8();
-        assert_eq!(img.dimensions(), (48, 32));
+        assert_eq!(img.dimensions(), (40, 24), "--resolution 40x24 overrides the file's 48x32");
         assert!(img.pixels().any(|p| p.0 != [0, 0, 0]), "{} is black", png.display());
     }
     assert!(

@@ -1,5 +1,6 @@
 //! `gridlight render` end to end on a small Cornell box: writes PNG and EXR of the scene's
-//! size, rejects a bad extension, and gives the same image on any number of threads.
+//! size (or `--resolution`'s), rejects a bad extension and a bad `--resolution` (on
+//! `master` and `demo` too), and gives the same image on any number of threads.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -53,6 +54,58 @@ fn renders_png_and_exr_of_the_scene_size() {
             image.pixels().map(|p| p[0] + p[1] + p[2]).sum::<f32>() / (32.0 * 24.0 * 3.0);
         assert!(mean > 0.05, "{name}: image too dark ({mean})");
     }
+}
+
+#[test]
+fn resolution_flag_overrides_the_scene_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = small_cornell(dir.path(), 8, 8);
+    let out = dir.path().join("c.png");
+    let run = gridlight(&[
+        "render",
+        scene.to_str().expect("utf-8"),
+        "--spp",
+        "1",
+        "--quiet",
+        "--resolution",
+        "20x12",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert_eq!(image::open(&out).expect("readable image").dimensions(), (20, 12));
+}
+
+/// `render`, `master` and `demo` refuse a bad `--resolution` before loading anything.
+#[test]
+fn bad_resolution_is_a_clear_error_on_every_command() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = small_cornell(dir.path(), 8, 8);
+    let scene = scene.to_str().expect("utf-8");
+    let out = dir.path().join("c.png");
+    let out = out.to_str().expect("utf-8");
+    let cases = [
+        ("0x5", "width 0 is not in 1..=16384"),
+        ("abc", "`abc` is not WIDTHxHEIGHT"),
+        ("100000x100000", "width 100000 is not in 1..=16384"),
+    ];
+    for (value, expected) in cases {
+        let commands: [&[&str]; 3] = [
+            &["render", scene, "--out", out, "--resolution", value],
+            &["master", scene, "--headless", "--resolution", value],
+            &["demo", scene, "--headless", "--resolution", value],
+        ];
+        for args in commands {
+            let run = gridlight(args);
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            assert!(!run.status.success(), "{args:?} succeeded");
+            assert!(
+                stderr.contains("--resolution") && stderr.contains(expected),
+                "{args:?}: {stderr}"
+            );
+        }
+    }
+    assert!(!dir.path().join("c.png").exists());
 }
 
 #[test]

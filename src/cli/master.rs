@@ -8,6 +8,7 @@ use anyhow::bail;
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::supervision::PanicInjection;
 
+use super::resolution::ResolutionArg;
 use super::GlobalArgs;
 use crate::gpu::Backend;
 use crate::master::headless::HeadlessOptions;
@@ -72,6 +73,9 @@ impl PacingArgs {
 /// scene's `[render.reconstruction]`, which overrides the paper's values).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct DisplayArgs {
+    /// Image size, overriding the scene file's `[resolution]` (each side 1..=16384).
+    #[arg(long, value_name = "WxH")]
+    pub resolution: Option<ResolutionArg>,
     /// The view shown in the window or written as PNG.
     #[arg(long, value_enum, default_value_t = View::Final)]
     pub view: View,

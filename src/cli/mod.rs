@@ -19,6 +19,7 @@ pub mod eval;
 pub mod eval_paper;
 pub mod master;
 pub mod render;
+pub mod resolution;
 pub mod scenes;
 pub mod simgrid;
 pub mod soak;

@@ -16,6 +16,7 @@ use anyhow::{bail, Context};
 use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::resolution::{self, ResolutionArg};
 use super::GlobalArgs;
 use crate::image_io::{self, ClaimedOutput};
 use crate::render::{render_pixels, PixelSample, RenderScene};
@@ -43,6 +44,9 @@ pub struct Args {
     /// Exposure in stops applied before tonemapping (PNG only).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
+    /// Image size, overriding the scene file's `[resolution]` (each side 1..=16384).
+    #[arg(long, value_name = "WxH")]
+    pub resolution: Option<ResolutionArg>,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -65,6 +69,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
     let loaded = scene::load_source(&source, &search)?;
     let mut state = loaded.state;
     state.render.spp = 1;
+    resolution::apply(&mut state.resolution, args.resolution);
     let render_scene = RenderScene::new(Arc::new(loaded.assets), &state)
         .with_context(|| format!("cannot render `{source}`"))?;
     tracing::info!(

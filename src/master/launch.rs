@@ -115,7 +115,8 @@ impl Prepared {
 /// Loads the scene and its assets and resolves the settings.
 pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     let search = opts.scene.search_path(&opts.asset_dirs);
-    let loaded = crate::scene::load_source(&opts.scene, &search)?;
+    let mut loaded = crate::scene::load_source(&opts.scene, &search)?;
+    crate::cli::resolution::apply(&mut loaded.state.resolution, opts.display.resolution);
     // The store hashes each file as it adds it: the only hashing at start.
     let paths = crate::scene::asset_paths(&loaded.state, &loaded.assets)
         .with_context(|| format!("listing the assets of {}", opts.scene))?;
