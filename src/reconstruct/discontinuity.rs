@@ -18,8 +18,11 @@ use std::ops::{Add, Mul, Sub};
 
 use glam::Vec3;
 
-/// The arithmetic D is made of: `f32`, or `super::simd::F32s` (several pixels at once,
-/// lane by lane, with the same roundings).
+use crate::render::isa::Isa;
+use crate::render::lanes::F32s;
+
+/// The arithmetic D is made of: `f32`, or [`F32s`] (several pixels at once, lane by lane,
+/// with the same roundings).
 pub trait Real: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
     fn splat(v: f32) -> Self;
 
@@ -40,6 +43,18 @@ impl Real for f32 {
         } else {
             0.0
         }
+    }
+}
+
+impl<I: Isa> Real for F32s<I> {
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        F32s::splat(v)
+    }
+
+    #[inline(always)]
+    fn positive_part(self) -> Self {
+        F32s::positive_part(self)
     }
 }
 

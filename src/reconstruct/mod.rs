@@ -9,8 +9,9 @@
 //! (`gpu.rs`, on the device plumbing of `crate::gpu`); [`Reconstructor`] picks one. The
 //! GPU pipeline writes each frame's outputs to a target of its own (`display_target.rs`)
 //! and can leave them there for a window on its device ([`DeviceImage`]).
-//! The CPU kernels' support is `planes.rs` (bordered planes), `simd.rs` (vectors and ISA
-//! dispatch) and `discontinuity.rs` (D); `history.rs` is the temporal history both
+//! The CPU kernels' support is `planes.rs` (bordered planes), `rows.rs` (row kernels run
+//! in parallel bands, in the renderer's instruction-set builds, on its lane types
+//! `crate::render::lanes`) and `discontinuity.rs` (D); `history.rs` is the temporal history both
 //! pipelines share. Whether a frame accumulates is not decided here: it comes with the
 //! frame (`FrameInputs::accumulated_frames`).
 
@@ -30,7 +31,7 @@ pub mod history;
 pub mod params;
 pub mod pass;
 pub mod planes;
-pub mod simd;
+pub mod rows;
 pub mod synthetic;
 pub mod tonemap;
 

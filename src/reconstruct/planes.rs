@@ -1,7 +1,7 @@
 //! The image layout of the CPU passes: planes of f32 (structure of arrays) with a border.
 //!
 //! The filters read each pixel's neighbours at fixed offsets. Planar storage puts
-//! [`LANES`] neighbouring pixels' values at consecutive addresses, one vector load, and a
+//! [`WIDTH`] neighbouring pixels' values at consecutive addresses, one vector load, and a
 //! border at least as wide as the widest filter radius (plus a tail for the last run of
 //! lanes) spares every tap an edge case: what the border holds is chosen per plane so that
 //! taps falling on it add exactly 0 (see [`GuidePlanes`]), and the innermost loops may skip
@@ -15,7 +15,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::simd::{run_rows, store, F32s, Isa, RowKernel, Vec3s, LANES};
+use super::rows::{run_rows, store, RowKernel};
+use crate::render::isa::Isa;
+use crate::render::lanes::{F32s, Vec3s, WIDTH};
 
 /// Three planes of one layout (x, y, z or r, g, b).
 pub type Planes3 = [Plane; 3];
@@ -85,10 +87,10 @@ impl Layout {
         Self { width, height, pad, stride: width + 2 * pad }
     }
 
-    /// Entries of one plane: the padded rows, then a tail of [`LANES`] so that a run of
+    /// Entries of one plane: the padded rows, then a tail of [`WIDTH`] so that a run of
     /// lanes starting at most `pad` pixels right of and below any pixel stays inside.
     pub fn plane_len(&self) -> usize {
-        self.stride * (self.height + 2 * self.pad) + LANES
+        self.stride * (self.height + 2 * self.pad) + WIDTH
     }
 
     /// Index of pixel (x, y) of the image.
@@ -165,10 +167,10 @@ pub fn normalise<I: Isa>(
     out: &mut PlaneRow<'_>,
 ) {
     // Every lane is divided and the quotient dropped where wsum is 0.
-    let mean = sum / wsum;
-    let n = LANES.min(out[0].len() - x0);
-    for ((o, m), f) in out.iter_mut().zip(mean.0).zip(fallback.0) {
-        store(&mut o[x0..x0 + n], &wsum.if_positive(m, f).to_array());
+    let mean = Vec3s::select(wsum.gt(F32s::splat(0.0)), sum.div_by(wsum), fallback);
+    let n = WIDTH.min(out[0].len() - x0);
+    for (o, m) in out.iter_mut().zip(mean.to_array()) {
+        store(&mut o[x0..x0 + n], &m.0);
     }
 }
 

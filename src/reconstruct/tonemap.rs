@@ -4,8 +4,8 @@
 
 use glam::Vec3;
 
-use super::simd::LANES;
 use crate::image_io::{aces_filmic, display_pixel, linear_to_srgb};
+use crate::render::lanes::WIDTH;
 
 /// The multiplier of an exposure in stops.
 #[inline]
@@ -35,15 +35,15 @@ pub fn to_rgba8_fast(colour: Vec3, exposure_scale: f32) -> [u8; 4] {
     Srgb8Table::get().rgba8(filmic(colour, exposure_scale))
 }
 
-/// [`to_rgba8_fast`] of [`LANES`] colours, with the filmic curve evaluated for all of
+/// [`to_rgba8_fast`] of [`WIDTH`] colours, with the filmic curve evaluated for all of
 /// them first, so that it vectorises.
 #[inline(always)]
-pub fn to_rgba8_lanes(colour: &[Vec3; LANES], exposure_scale: f32) -> [[u8; 4]; LANES] {
-    let mut t = [Vec3::ZERO; LANES];
+pub fn to_rgba8_lanes(colour: &[Vec3; WIDTH], exposure_scale: f32) -> [[u8; 4]; WIDTH] {
+    let mut t = [Vec3::ZERO; WIDTH];
     for (t, &c) in t.iter_mut().zip(colour) {
         *t = filmic(c, exposure_scale);
     }
-    let (table, mut rgba) = (Srgb8Table::get(), [[0; 4]; LANES]);
+    let (table, mut rgba) = (Srgb8Table::get(), [[0; 4]; WIDTH]);
     for (rgba, t) in rgba.iter_mut().zip(t) {
         *rgba = table.rgba8(t);
     }

@@ -2,7 +2,7 @@
 //! around them, weighted by D (k = 1).
 //!
 //! Each tap computes the shader's f32 expressions, but the disc is covered by runs of
-//! [`LANES`] consecutive taps of one row (lanes outside the disc are masked to exactly 0),
+//! [`WIDTH`] consecutive taps of one row (lanes outside the disc are masked to exactly 0),
 //! so that a run is a handful of vector instructions; a pixel's sum therefore adds its
 //! taps run by run and then across lanes, an order that differs from the shader's by
 //! rounding only.
@@ -15,7 +15,9 @@ use crate::gpu::compute::{Binding, ComputePass};
 use crate::reconstruct::discontinuity::{is_surface, Thresholds};
 use crate::reconstruct::planes::{at, image_rows, view, write_rows, GuidePlanes, GuideView};
 use crate::reconstruct::planes::{Layout, Plane, PlaneRow, Planes3, View3};
-use crate::reconstruct::simd::{F32s, Isa, RowKernel, Vec3s, LANES};
+use crate::reconstruct::rows::RowKernel;
+use crate::render::isa::Isa;
+use crate::render::lanes::{F32s, Mask, Vec3s, WIDTH};
 
 /// WGSL: reads the running sums and the G-buffer, writes the filled radiance.
 pub const WGSL: &str = include_str!("../../../shaders/reconstruct/fill.wgsl");
@@ -93,12 +95,12 @@ pub fn fill(
     write_rows(&pass, layout, out);
 }
 
-/// Up to [`LANES`] consecutive taps of one row of the disc: the offset of the first from
+/// Up to [`WIDTH`] consecutive taps of one row of the disc: the offset of the first from
 /// the centre pixel, and each lane's mask (all ones inside the disc, 0 outside).
 #[derive(Debug)]
 struct Run {
     offset: isize,
-    keep: [f32; LANES],
+    keep: [u32; WIDTH],
 }
 
 /// The runs covering the disc of radius `r`, row by row.
@@ -107,9 +109,9 @@ fn disc(r: i32, layout: &Layout) -> Vec<Run> {
     for dy in -r..=r {
         // Half-width of the disc on this row.
         let half = (0..=r).take_while(|dx| dx * dx + dy * dy <= r * r).count() as i32 - 1;
-        for start in (-half..=half).step_by(LANES) {
+        for start in (-half..=half).step_by(WIDTH) {
             let inside = |k: usize| start + k as i32 <= half;
-            let keep = std::array::from_fn(|k| f32::from_bits(if inside(k) { !0 } else { 0 }));
+            let keep = std::array::from_fn(|k| if inside(k) { u32::MAX } else { 0 });
             runs.push(Run { offset: layout.offset(start, dy), keep });
         }
     }
@@ -171,9 +173,9 @@ impl FillPass<'_> {
     #[inline(always)]
     fn weighted_sum<I: Isa>(&self, i: usize) -> (Vec3, f32) {
         let g = &self.guide;
-        let n_i = Vec3s::<I>::splat(at(&g.normal, i)).0;
-        let z_i = Vec3s::<I>::splat(at(&g.position, i)).0;
-        let (mut sum, mut wsum) = (Vec3s::zero(), F32s::zero());
+        let n_i = Vec3s::<I>::splat(at(&g.normal, i)).to_array();
+        let z_i = Vec3s::<I>::splat(at(&g.position, i)).to_array();
+        let (mut sum, mut wsum) = (Vec3s::splat(Vec3::ZERO), F32s::splat(0.0));
         for run in &self.runs {
             let j = i.wrapping_add_signed(run.offset);
             // SAFETY: a run starts at most the radius away from a pixel of the image, which
@@ -183,14 +185,15 @@ impl FillPass<'_> {
                 let (n_j, z_j) =
                     (Vec3s::load_unchecked(&g.normal, j), Vec3s::load_unchecked(&g.position, j));
                 (
-                    n_j.0,
-                    z_j.0,
+                    n_j.to_array(),
+                    z_j.to_array(),
                     F32s::load_unchecked(self.calc, j),
                     Vec3s::load_unchecked(&self.mean, j),
                 )
             };
-            let d = self.d.d3(n_i, n_j, z_i, z_j) * calc.masked(F32s::from_array(&run.keep));
-            sum += mean.masked(F32s::from_array(&run.keep)) * d;
+            let keep = Mask::<I>::new(run.keep);
+            let d = self.d.d3(n_i, n_j, z_i, z_j) * calc.masked(keep);
+            sum += mean.masked(keep).scale(d);
             wsum += d;
         }
         (sum.sum(), wsum.sum())
@@ -200,11 +203,12 @@ impl FillPass<'_> {
     /// needed only where every D is 0, so summed apart.
     #[inline(always)]
     fn plain_sum<I: Isa>(&self, i: usize) -> (Vec3, f32) {
-        let (mut sum, mut count) = (Vec3s::<I>::zero(), F32s::zero());
+        let (mut sum, mut count) = (Vec3s::<I>::splat(Vec3::ZERO), F32s::splat(0.0));
         for run in &self.runs {
             let j = i.wrapping_add_signed(run.offset);
-            let s = F32s::load(self.surf_calc, j).masked(F32s::from_array(&run.keep));
-            sum += Vec3s::load(&self.mean, j).masked(F32s::from_array(&run.keep)) * s;
+            let keep = Mask::<I>::new(run.keep);
+            let s = F32s::load(self.surf_calc, j).masked(keep);
+            sum += Vec3s::load(&self.mean, j).masked(keep).scale(s);
             count += s;
         }
         (sum.sum(), count.sum())

@@ -12,10 +12,12 @@
 
 use super::{PassConsts, GAUSS_TABLE};
 use crate::gpu::compute::{Binding, ComputePass};
-use crate::reconstruct::discontinuity::{Real, Thresholds};
+use crate::reconstruct::discontinuity::Thresholds;
 use crate::reconstruct::planes::{normalise, view, write_rows, GuidePlanes, GuideView, Layout};
 use crate::reconstruct::planes::{PlaneRow, Planes3, View3};
-use crate::reconstruct::simd::{store, F32s, Isa, RowKernel, Vec3s, LANES};
+use crate::reconstruct::rows::{store, RowKernel};
+use crate::render::isa::Isa;
+use crate::render::lanes::{F32s, Vec3s, WIDTH};
 
 /// WGSL: reads the blended radiance and the G-buffer, writes the filtered radiance.
 pub const WGSL: &str = include_str!("../../../shaders/reconstruct/gaussian.wgsl");
@@ -46,7 +48,7 @@ pub fn gaussian(
         .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
         .filter(|&(dx, dy)| dy > 0 || dx >= 0)
         .collect();
-    let ring_width = layout.width + 2 * r as usize + LANES;
+    let ring_width = layout.width + 2 * r as usize + WIDTH;
     let position = |dx: i32, dy: i32| ahead.iter().position(|&a| a == (dx, dy));
     let taps = (-r..=r)
         .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
@@ -130,21 +132,22 @@ impl GaussianPass<'_> {
         }
         let (normal, position) = (&self.guide.normal, &self.guide.position);
         let (w, base) = (self.layout.width, self.layout.index(0, y as usize));
-        for x0 in (0..w).step_by(LANES) {
+        for x0 in (0..w).step_by(WIDTH) {
             let i = base + x0;
-            let (n, z) = (Vec3s::<I>::load(normal, i).0, Vec3s::<I>::load(position, i).0);
+            let (n, z) = (Vec3s::<I>::load(normal, i), Vec3s::<I>::load(position, i));
+            let (n, z) = (n.to_array(), z.to_array());
             for (row, &(offset, g)) in ring.chunks_exact_mut(self.ring_width).zip(&self.ahead) {
                 let j = i.wrapping_add_signed(offset);
                 // SAFETY: `j` is a pixel of the image moved by at most the radius, which the
                 // border covers (checked in `gaussian`).
                 let (n_j, z_j) = unsafe {
-                    (Vec3s::load_unchecked(normal, j).0, Vec3s::load_unchecked(position, j).0)
+                    (Vec3s::load_unchecked(normal, j), Vec3s::load_unchecked(position, j))
                 };
-                let wgt = F32s::splat(g) * self.d.d3(n, n_j, z, z_j);
-                let row = &mut row[self.radius + x0..][..LANES.min(w - x0)];
-                match <&mut [f32; LANES]>::try_from(&mut *row) {
+                let wgt = F32s::splat(g) * self.d.d3(n, n_j.to_array(), z, z_j.to_array());
+                let row = &mut row[self.radius + x0..][..WIDTH.min(w - x0)];
+                match <&mut [f32; WIDTH]>::try_from(&mut *row) {
                     Ok(whole) => wgt.store(whole),
-                    Err(_) => store(row, &wgt.to_array()),
+                    Err(_) => store(row, &wgt.0),
                 }
             }
         }
@@ -176,9 +179,9 @@ impl RowKernel<PlaneRow<'_>> for GaussianPass<'_> {
             *slot = self.slot(y_i - above as isize);
         }
         let base = self.layout.index(0, y);
-        for x0 in (0..self.layout.width).step_by(LANES) {
+        for x0 in (0..self.layout.width).step_by(WIDTH) {
             let i = base + x0;
-            let (mut sum, mut wsum) = (Vec3s::<I>::zero(), F32s::zero());
+            let (mut sum, mut wsum) = (Vec3s::<I>::default(), F32s::splat(0.0));
             for tap in &self.taps {
                 // SAFETY: a weight's column is within its row of the ring, margins included,
                 // and `tap.src` moves a pixel by at most the radius, which the border covers
@@ -188,7 +191,7 @@ impl RowKernel<PlaneRow<'_>> for GaussianPass<'_> {
                         F32s::load_unchecked(&ring.weights, slots[tap.above] + tap.column + x0);
                     (wgt, Vec3s::load_unchecked(&self.src, i.wrapping_add_signed(tap.src)))
                 };
-                sum += src * wgt;
+                sum += src.scale(wgt);
                 wsum += wgt;
             }
             normalise(sum, wsum, Vec3s::load(&self.src, i), x0, &mut out);
@@ -262,7 +265,7 @@ mod tests {
     #[test]
     fn gaussian_adds_its_taps_as_the_shader() {
         // Negative α gives the border a positive orientation factor: only its infinitely
-        // distant positions keep it out. Widths that are not a multiple of LANES.
+        // distant positions keep it out. Widths that are not a multiple of WIDTH.
         let (w, h) = (21, 13);
         let n = (w * h) as usize;
         let normal: Vec<Vec3> = (0..n)

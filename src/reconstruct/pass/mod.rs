@@ -14,9 +14,10 @@
 //! Every CPU kernel computes what its WGSL twin computes, each tap with the same f32
 //! expressions in the same order (D, the weights, the products and the final division), so
 //! that the parity test can hold the two to a tight tolerance; the fill adds its taps
-//! [`LANES`](super::simd::LANES) at a time, which changes its sums by rounding only. The
-//! kernels work on planes with a border (`super::planes`): taps need no bounds checks and
-//! one vector load fetches LANES neighbours. Rows are processed in parallel with rayon.
+//! [`WIDTH`](crate::render::lanes::WIDTH) at a time, which changes its sums by rounding
+//! only. The kernels work on planes with a border (`super::planes`): taps need no bounds
+//! checks and one vector load fetches WIDTH neighbours. Rows are processed in parallel
+//! bands (`super::rows`).
 //!
 //! What every pass shares lives here: [`PassConsts`] (derived once per frame) and its GPU
 //! mirror [`Uniforms`] (the `Params` block of `common.wgsl`, prefixed to every pass).

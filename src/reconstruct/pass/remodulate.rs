@@ -6,8 +6,10 @@ use glam::Vec3;
 
 use crate::gpu::compute::{Binding, ComputePass};
 use crate::reconstruct::planes::{view, Layout, Planes3, View3};
-use crate::reconstruct::simd::{load, run_rows, store, Isa, RowKernel, Vec3s, LANES};
+use crate::reconstruct::rows::{load, run_rows, store, RowKernel};
 use crate::reconstruct::tonemap::{exposure_scale, to_rgba8_lanes};
+use crate::render::isa::Isa;
+use crate::render::lanes::{Vec3s, WIDTH};
 
 use super::PassConsts;
 
@@ -82,14 +84,14 @@ impl RowKernel<OutputRow<'_>> for RemodulatePass<'_> {
     #[inline(always)]
     fn row<I: Isa>(&self, y: usize, (radiance, colour, display): OutputRow<'_>, _: &mut ()) {
         let (w, base) = (self.layout.width, self.layout.index(0, y));
-        for x0 in (0..w).step_by(LANES) {
-            // LANES pixels at a time (the row's last chunk padded), so that the filmic
+        for x0 in (0..w).step_by(WIDTH) {
+            // WIDTH pixels at a time (the row's last chunk padded), so that the filmic
             // curve vectorises.
-            let x1 = w.min(x0 + LANES);
+            let x1 = w.min(x0 + WIDTH);
             let l = Vec3s::<I>::load(&self.radiance, base + x0).to_vec3s();
             let albedo = load(&self.albedo[y * w + x0..y * w + x1], Vec3::ZERO);
             let emission = load(&self.emission[y * w + x0..y * w + x1], Vec3::ZERO);
-            let c: [Vec3; LANES] = std::array::from_fn(|k| albedo[k] * l[k] + emission[k]);
+            let c: [Vec3; WIDTH] = std::array::from_fn(|k| albedo[k] * l[k] + emission[k]);
             store(&mut radiance[x0..x1], &l);
             store(&mut colour[x0..x1], &c);
             store(&mut display[x0..x1], &to_rgba8_lanes(&c, self.scale));

@@ -1,11 +1,42 @@
 //! The kernel's builds per instruction set (baseline x86-64, x86-64-v3, x86-64-v4), the
 //! same source compiled with each build's `#[target_feature]`s, and the dispatch that runs
-//! the best build this CPU has.
+//! the best build this CPU has. Other code written on the lane types (the reconstruction's
+//! row kernels) runs in the same builds through [`BuildTask`] and [`run_in_build`], so that
+//! each build's feature list is written once, here.
 
 use super::gbuffer::primary_hits_with;
 use super::{RenderStats, Strategy};
-use crate::render::isa::{Cpu, IsaLevel};
+use crate::render::isa::{Cpu, Isa, IsaLevel};
 use crate::render::{PixelSample, RenderScene};
+
+/// Work written on the lane types, to be compiled into each build: implementations make
+/// [`BuildTask::run`] `#[inline(always)]`, so that it is compiled within a function that
+/// enables the build's features, where the intrinsics of `I`'s lanes inline.
+pub trait BuildTask {
+    type Output;
+
+    /// Does the work with the lanes of `I`, which `cpu` proves this CPU runs.
+    fn run<I: Isa>(self, cpu: Cpu<I>) -> Self::Output;
+}
+
+/// Runs `task` in the build of the given level.
+///
+/// # Panics
+/// Where this CPU cannot run `build` (see [`IsaLevel::available`]).
+pub fn run_in_build<T: BuildTask>(build: IsaLevel, task: T) -> T::Output {
+    assert!(build.available(), "this CPU cannot run the {} build", build.name());
+    match build {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the CPU has every feature the build is compiled with (asserted).
+        IsaLevel::V4 => unsafe { v4::run(task) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as V4.
+        IsaLevel::V3 => unsafe { v3::run(task) },
+        #[cfg(not(target_arch = "x86_64"))]
+        IsaLevel::V4 | IsaLevel::V3 => unreachable!("no SIMD build off x86-64"),
+        IsaLevel::Baseline => task.run(Cpu::BASELINE),
+    }
+}
 
 /// [`super::render_pixels_counted`] in the build of the given level.
 ///
@@ -75,6 +106,16 @@ macro_rules! isa_build {
             pub unsafe fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
                 let cpu = Cpu::<crate::render::isa::$isa>::detect().expect("the build's features");
                 primary_hits_with(cpu, scene, first, out)
+            }
+
+            /// [`BuildTask::run`] of `task`, compiled with this build's features.
+            ///
+            /// # Safety
+            /// Only on a CPU for which [`available`] is true.
+            #[target_feature(enable = $features)]
+            pub unsafe fn run<T: BuildTask>(task: T) -> T::Output {
+                let cpu = Cpu::<crate::render::isa::$isa>::detect().expect("the build's features");
+                task.run(cpu)
             }
         }
     };

@@ -22,7 +22,7 @@ mod path;
 #[cfg(test)]
 mod reference;
 
-pub use builds::{primary_hits, render_pixels_in};
+pub use builds::{primary_hits, render_pixels_in, run_in_build, BuildTask};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use builds::{v3, v4};
 pub use gbuffer::{area_emission, escaped_emission, pick, primary_hit};

@@ -2,7 +2,7 @@
 //! conversions, each one instruction per register of the lanes' instruction set.
 
 use std::marker::PhantomData;
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 use super::{bits, each, floats, F32s, Isa, Mask, U32s, WIDTH};
 
@@ -10,6 +10,13 @@ lanewise!(F32s, f, Add, add, +, _mm_add_ps, _mm256_add_ps, _mm512_add_ps);
 lanewise!(F32s, f, Sub, sub, -, _mm_sub_ps, _mm256_sub_ps, _mm512_sub_ps);
 lanewise!(F32s, f, Mul, mul, *, _mm_mul_ps, _mm256_mul_ps, _mm512_mul_ps);
 lanewise!(F32s, f, Div, div, /, _mm_div_ps, _mm256_div_ps, _mm512_div_ps);
+
+impl<I: Isa> AddAssign for F32s<I> {
+    #[inline(always)]
+    fn add_assign(&mut self, o: F32s<I>) {
+        *self = *self + o;
+    }
+}
 
 impl<I: Isa> Neg for F32s<I> {
     type Output = F32s<I>;
@@ -57,6 +64,65 @@ impl<I: Isa> F32s<I> {
     #[inline(always)]
     pub fn map(self, f: impl Fn(f32) -> f32) -> Self {
         Self::new(each(self.0, f))
+    }
+
+    /// The entries `i..i + WIDTH` of `s`.
+    #[inline(always)]
+    pub fn load(s: &[f32], i: usize) -> Self {
+        Self::new(s[i..i + WIDTH].try_into().expect("WIDTH entries"))
+    }
+
+    /// [`F32s::load`] without the bounds check, for innermost loops whose indices a
+    /// layout keeps in bounds.
+    ///
+    /// # Safety
+    /// `i + WIDTH <= s.len()`.
+    #[inline(always)]
+    pub unsafe fn load_unchecked(s: &[f32], i: usize) -> Self {
+        debug_assert!(i + WIDTH <= s.len(), "{i} + WIDTH is past {}", s.len());
+        // SAFETY: the caller guarantees that the WIDTH entries are in `s`; `f32` has no
+        // alignment beyond its own, which the slice gives.
+        Self::new(unsafe { s.as_ptr().add(i).cast::<[f32; WIDTH]>().read_unaligned() })
+    }
+
+    /// Writes the lanes to `a`.
+    #[inline(always)]
+    pub fn store(self, a: &mut [f32; WIDTH]) {
+        *a = self.0;
+    }
+
+    /// The lanes' sum, added pairwise: lane i + lane i + 8 for i < 8, then i + (i + 4) of
+    /// those, and so on (four vector additions rather than fifteen dependent ones).
+    #[inline(always)]
+    pub fn sum(self) -> f32 {
+        let mut x = self.0;
+        let mut n = WIDTH;
+        while n > 1 {
+            n /= 2;
+            for i in 0..n {
+                x[i] += x[i + n];
+            }
+        }
+        x[0]
+    }
+
+    /// max(0, x) per lane as `if x > 0 { x } else { 0 }`: NaN and −0 give +0. (`maxps(x,
+    /// 0)` returns its second operand where either is NaN or both are zero.)
+    #[inline(always)]
+    pub fn positive_part(self) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        return F32s::new(regs!(I, f -> f, self.0, self.0, |x, _y|
+            sse: _mm_max_ps(x, _mm_setzero_ps()), avx: _mm256_max_ps(x, _mm256_setzero_ps()),
+            avx512: _mm512_max_ps(x, _mm512_setzero_ps())));
+        #[cfg(not(target_arch = "x86_64"))]
+        self.map(|x| if x > 0.0 { x } else { 0.0 })
+    }
+
+    /// Each lane where `keep` is true, +0 where it is false (whatever the lane held: NaN
+    /// and infinities too).
+    #[inline(always)]
+    pub fn masked(self, keep: Mask<I>) -> Self {
+        F32s::from_bits(self.to_bits() & keep)
     }
 
     compare!(lt, <, _CMP_LT_OQ, _mm_cmplt_ps);

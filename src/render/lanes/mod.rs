@@ -1,5 +1,6 @@
 //! Sixteen paths' numbers side by side: `f32` and `u32` lanes with element-wise
-//! operators, for the stream kernel ([`super::stream`]), in each kernel build's
+//! operators, for the stream kernel ([`super::stream`]) and the reconstruction's filters
+//! (sixteen pixels of a row: `crate::reconstruct::rows`), in each kernel build's
 //! instructions.
 //!
 //! The lane types carry the instruction set they compile to as a type parameter
@@ -114,9 +115,10 @@ mod reg {
 
 /// One operation on the registers of two lane arrays (`$a`, `$b`) of kind `f` or `u`,
 /// giving lanes of kind `f` or `u`: `$avx512` on the one AVX-512 register, `$avx` on
-/// each AVX half, `$sse` on each SSE quarter, by the lanes' [`IsaLevel`](super::isa::IsaLevel) (a constant, so
-/// only one arm is compiled into a build). Written out per register, not as a closure,
-/// so that it is never compiled out of line.
+/// each AVX half, `$sse` on each SSE quarter, by the lanes'
+/// [`IsaLevel`](super::isa::IsaLevel) (a constant, so only one arm is compiled into a
+/// build). Written out per register, not as a closure, so that it is never compiled out
+/// of line.
 #[cfg(target_arch = "x86_64")]
 macro_rules! regs {
     ($I:ty, $in:ident -> $out:ident, $a:expr, $b:expr,

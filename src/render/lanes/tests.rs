@@ -166,3 +166,68 @@ fn scalar_bits<I: Isa>() {
 
 isa_tests!(scalar_bits: sse2_lanes_give_the_scalar_bits, avx2_lanes_give_the_scalar_bits,
     avx512_lanes_give_the_scalar_bits);
+
+/// The operations the reconstruction's filters use: loads from planes, stores, sums
+/// across lanes, the positive part and masking, against the scalar code's bits.
+fn filter_bits<I: Isa>() {
+    use std::hint::black_box;
+    let awkward = [0.5, -1.25, f32::NAN, -0.0, 0.0, f32::INFINITY, f32::NEG_INFINITY, 1e-30];
+    let plane: Vec<f32> = black_box(
+        (0..3 * WIDTH + 5)
+            .map(|i| awkward[i % 8] * if i % 3 == 0 { 1.0 } else { -3.5 } + (i % 5) as f32)
+            .collect(),
+    );
+    let i = 7;
+    let a = F32s::<I>::load(&plane, i);
+    // SAFETY: `i + WIDTH` is within the plane.
+    let b = unsafe { F32s::<I>::load_unchecked(&plane, i + WIDTH) };
+    let keep = U32s::<I>::from_bitmask(0b1011_0010_1110_0101);
+    let (pos, masked) = (a.positive_part(), a.masked(keep));
+    let mut acc = a;
+    acc += b;
+    let mut stored = [0.0; WIDTH];
+    b.store(&mut stored);
+    for k in 0..WIDTH {
+        let (x, y) = (plane[i + k], plane[i + WIDTH + k]);
+        assert_eq!((a.0[k].to_bits(), stored[k].to_bits()), (x.to_bits(), y.to_bits()));
+        let want = if x > 0.0 { x } else { 0.0 };
+        assert_eq!(pos.0[k].to_bits(), want.to_bits(), "positive part of {x}");
+        let want = if keep.0[k] != 0 { x } else { 0.0 };
+        assert_eq!(masked.0[k].to_bits(), want.to_bits(), "lane {k}");
+        assert_eq!(acc.0[k].to_bits(), (x + y).to_bits(), "lane {k}");
+    }
+    // The sum, pairwise in the documented order, of finite values (and of a NaN).
+    let finite = F32s::<I>::new(black_box(std::array::from_fn(|k| 1.0 / (k as f32 + 3.0))));
+    let mut want = finite.0;
+    for n in [8, 4, 2, 1] {
+        for k in 0..n {
+            want[k] += want[k + n];
+        }
+    }
+    assert_eq!(finite.sum().to_bits(), want[0].to_bits());
+    assert!(a.sum().is_nan());
+    let planes = [&plane[..], &plane[WIDTH..], &plane[2 * WIDTH..]];
+    let v = Vec3s::<I>::load(&planes, 2);
+    // SAFETY: each plane holds `2 + WIDTH` entries.
+    let u = unsafe { Vec3s::<I>::load_unchecked(&planes, 2) };
+    let f = Vec3s::<I> { x: finite, y: finite * finite, z: -finite };
+    let (lanes, sum, masked) = (v.to_vec3s(), f.sum(), v.masked(keep));
+    let mut acc = f;
+    acc += f;
+    assert_eq!(
+        sum.to_array().map(f32::to_bits),
+        [finite.sum(), (finite * finite).sum(), (-finite).sum()].map(f32::to_bits)
+    );
+    for k in 0..WIDTH {
+        let want = glam::Vec3::new(planes[0][2 + k], planes[1][2 + k], planes[2][2 + k]);
+        assert_eq!(lanes[k].to_array().map(f32::to_bits), want.to_array().map(f32::to_bits));
+        assert_eq!(u.lane(k).to_array().map(f32::to_bits), want.to_array().map(f32::to_bits));
+        let kept = if keep.0[k] != 0 { want } else { glam::Vec3::ZERO };
+        assert_eq!(masked.lane(k).to_array().map(f32::to_bits), kept.to_array().map(f32::to_bits));
+        assert_eq!(acc.lane(k), f.lane(k) + f.lane(k), "lane {k}");
+    }
+    assert_eq!(v.to_array()[1].to_bits(), v.y.to_bits());
+}
+
+isa_tests!(filter_bits: sse2_filter_lanes_give_the_scalar_bits,
+    avx2_filter_lanes_give_the_scalar_bits, avx512_filter_lanes_give_the_scalar_bits);

@@ -1,8 +1,8 @@
 //! Three-component vectors of lanes, with glam's `Vec3` operations in glam's order.
 
-use std::ops::{Add, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Mul, Neg, Sub};
 
-use super::{F32s, Isa, Mask};
+use super::{F32s, Isa, Mask, WIDTH};
 
 /// Sixteen 3-vectors, component by component, with glam's `Vec3` arithmetic (same
 /// operations in the same order, so the same bits).
@@ -17,6 +17,54 @@ impl<I: Isa> Vec3s<I> {
     #[inline(always)]
     pub fn splat(v: glam::Vec3) -> Self {
         Self { x: F32s::splat(v.x), y: F32s::splat(v.y), z: F32s::splat(v.z) }
+    }
+
+    /// The entries `i..i + WIDTH` of three planes (x, y, z).
+    #[inline(always)]
+    pub fn load(planes: &[&[f32]; 3], i: usize) -> Self {
+        let [x, y, z] = planes;
+        Self { x: F32s::load(x, i), y: F32s::load(y, i), z: F32s::load(z, i) }
+    }
+
+    /// [`Vec3s::load`] without the bounds checks.
+    ///
+    /// # Safety
+    /// `i + WIDTH <= p.len()` for each plane `p`.
+    #[inline(always)]
+    pub unsafe fn load_unchecked(planes: &[&[f32]; 3], i: usize) -> Self {
+        let [x, y, z] = planes;
+        // SAFETY: as the caller guarantees.
+        unsafe {
+            Self {
+                x: F32s::load_unchecked(x, i),
+                y: F32s::load_unchecked(y, i),
+                z: F32s::load_unchecked(z, i),
+            }
+        }
+    }
+
+    /// The components' lanes, x, y, z.
+    #[inline(always)]
+    pub fn to_array(self) -> [F32s<I>; 3] {
+        [self.x, self.y, self.z]
+    }
+
+    /// The lanes as vectors.
+    #[inline(always)]
+    pub fn to_vec3s(self) -> [glam::Vec3; WIDTH] {
+        std::array::from_fn(|i| self.lane(i))
+    }
+
+    /// Each component's [`F32s::sum`].
+    #[inline(always)]
+    pub fn sum(self) -> glam::Vec3 {
+        glam::Vec3::new(self.x.sum(), self.y.sum(), self.z.sum())
+    }
+
+    /// Each component's [`F32s::masked`].
+    #[inline(always)]
+    pub fn masked(self, keep: Mask<I>) -> Self {
+        Self { x: self.x.masked(keep), y: self.y.masked(keep), z: self.z.masked(keep) }
     }
 
     #[inline(always)]
@@ -98,6 +146,13 @@ macro_rules! componentwise {
 componentwise!(Add, add, +);
 componentwise!(Sub, sub, -);
 componentwise!(Mul, mul, *);
+
+impl<I: Isa> AddAssign for Vec3s<I> {
+    #[inline(always)]
+    fn add_assign(&mut self, o: Vec3s<I>) {
+        *self = *self + o;
+    }
+}
 
 impl<I: Isa> Neg for Vec3s<I> {
     type Output = Vec3s<I>;
