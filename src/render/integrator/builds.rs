@@ -2,7 +2,8 @@
 //! same source compiled with each build's `#[target_feature]`s, and the dispatch that runs
 //! the best build this CPU has. Other code written on the lane types (the reconstruction's
 //! row kernels) runs in the same builds through [`BuildTask`] and [`run_in_build`], so that
-//! each build's feature list is written once, here.
+//! each build's feature list is written once, here: the kernel itself and its primary hits
+//! are such tasks too.
 
 use super::gbuffer::primary_hits_with;
 use super::{RenderStats, Strategy};
@@ -50,19 +51,53 @@ pub fn render_pixels_in(
     out: &mut Vec<PixelSample>,
     strategy: Strategy,
 ) -> RenderStats {
-    assert!(build.available(), "this CPU cannot run the {} build of the kernel", build.name());
-    match build {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU has every feature the build is compiled with (asserted).
-        IsaLevel::V4 => unsafe { v4::render_pixels(scene, frame, pixels, out, strategy) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as V4.
-        IsaLevel::V3 => unsafe { v3::render_pixels(scene, frame, pixels, out, strategy) },
-        #[cfg(not(target_arch = "x86_64"))]
-        IsaLevel::V4 | IsaLevel::V3 => unreachable!("no SIMD build off x86-64"),
-        IsaLevel::Baseline => {
-            crate::render::stream::render(Cpu::BASELINE, scene, frame, pixels, out, strategy)
-        }
+    run_in_build(build, RenderPixels { scene, frame, pixels, out, strategy })
+}
+
+/// [`super::primary_hit`] of pixels `first..first + out.len()` into `out`, in the kernel
+/// build [`super::render_pixels_counted`] would pick (the same values bit for bit).
+pub fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
+    run_in_build(IsaLevel::best(), PrimaryHits { scene, first, out })
+}
+
+/// The stream kernel over a pixel list, as a [`BuildTask`].
+struct RenderPixels<'a> {
+    scene: &'a RenderScene,
+    frame: u64,
+    pixels: &'a [u32],
+    out: &'a mut Vec<PixelSample>,
+    strategy: Strategy,
+}
+
+impl BuildTask for RenderPixels<'_> {
+    type Output = RenderStats;
+
+    #[inline(always)]
+    fn run<I: Isa>(self, cpu: Cpu<I>) -> RenderStats {
+        crate::render::stream::render(
+            cpu,
+            self.scene,
+            self.frame,
+            self.pixels,
+            self.out,
+            self.strategy,
+        )
+    }
+}
+
+/// Primary hits of a pixel range, as a [`BuildTask`].
+struct PrimaryHits<'a> {
+    scene: &'a RenderScene,
+    first: u32,
+    out: &'a mut [PixelSample],
+}
+
+impl BuildTask for PrimaryHits<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, cpu: Cpu<I>) {
+        primary_hits_with(cpu, self.scene, self.first, self.out)
     }
 }
 
@@ -78,34 +113,11 @@ macro_rules! isa_build {
         pub(crate) mod $name {
             use super::*;
 
-            /// Whether this CPU can run [`render_pixels`] (cached by std after the first
+            /// Whether this CPU can run this build's functions (cached by std after the first
             /// call).
             #[inline]
             pub fn available() -> bool {
                 $(std::is_x86_feature_detected!($f))&&*
-            }
-
-            /// # Safety
-            /// Only on a CPU for which [`available`] is true.
-            #[target_feature(enable = $features)]
-            pub unsafe fn render_pixels(
-                scene: &RenderScene,
-                frame: u64,
-                pixels: &[u32],
-                out: &mut Vec<PixelSample>,
-                strategy: Strategy,
-            ) -> RenderStats {
-                // The caller checked `available`, which is what `detect` checks.
-                let cpu = Cpu::<crate::render::isa::$isa>::detect().expect("the build's features");
-                crate::render::stream::render(cpu, scene, frame, pixels, out, strategy)
-            }
-
-            /// # Safety
-            /// Only on a CPU for which [`available`] is true.
-            #[target_feature(enable = $features)]
-            pub unsafe fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
-                let cpu = Cpu::<crate::render::isa::$isa>::detect().expect("the build's features");
-                primary_hits_with(cpu, scene, first, out)
             }
 
             /// [`BuildTask::run`] of `task`, compiled with this build's features.
@@ -141,17 +153,3 @@ isa_build!(
         "avx512bw", "avx512dq", "avx512cd"
     ]
 );
-
-/// [`super::primary_hit`] of pixels `first..first + out.len()` into `out`, in the kernel
-/// build [`super::render_pixels_counted`] would pick (the same values bit for bit).
-pub fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
-    match IsaLevel::best() {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `best` picks only a build whose features the CPU has.
-        IsaLevel::V4 => unsafe { v4::primary_hits(scene, first, out) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as V4.
-        IsaLevel::V3 => unsafe { v3::primary_hits(scene, first, out) },
-        _ => primary_hits_with(Cpu::BASELINE, scene, first, out),
-    }
-}
