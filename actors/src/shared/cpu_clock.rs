@@ -1,0 +1,47 @@
+//! The calling thread's CPU time: what the scheduler measures the master's own cost per
+//! result with (`scheduler::job_size`), and what the simulated grid and the kernel
+//! benchmarks time work in (other processes on the cores do not count).
+
+/// CPU time consumed by the calling thread, in seconds (NaN where the clock fails, and
+/// on platforms without a thread CPU clock in `libc`: callers then time by the wall or
+/// go without).
+#[cfg(not(any(target_os = "linux", target_os = "macos")))]
+pub fn thread_cpu_seconds() -> f64 {
+    f64::NAN
+}
+
+/// CPU time consumed by the calling thread, in seconds (NaN where the clock fails).
+#[cfg(any(target_os = "linux", target_os = "macos"))]
+pub fn thread_cpu_seconds() -> f64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid out-pointer; this clock exists on every Linux kernel and
+    // on macOS since 10.12.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_thread_clock_counts_this_threads_work_and_not_its_sleep() {
+        let start = thread_cpu_seconds();
+        if start.is_nan() {
+            return; // no thread clock here: callers go without
+        }
+        std::thread::sleep(std::time::Duration::from_millis(30));
+        let slept = thread_cpu_seconds() - start;
+        let mut x = 0u64;
+        let spin = std::time::Instant::now();
+        while spin.elapsed() < std::time::Duration::from_millis(30) {
+            x = std::hint::black_box(x.wrapping_add(1));
+        }
+        let worked = thread_cpu_seconds() - start - slept;
+        assert!(slept < 0.02, "sleeping cost {slept} s of CPU");
+        assert!(worked > 0.0, "spinning cost no CPU");
+    }
+}
