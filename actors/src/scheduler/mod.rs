@@ -16,7 +16,8 @@
 //!
 //! Jobs are sized to the live grid ([`JobSize`]): every [`job_size::REVIEW_PERIOD`] the
 //! scheduler measures what its own thread (the actor thread, which every connection,
-//! the assembler and the presenter share) spent and received per result, and with the
+//! the assembler and the presenter share) spent (running or waiting for a core) and
+//! received per result, and with the
 //! workers' render times and the inbound link's rate decides how many samples per pixel
 //! the jobs of the frames it opens next take, so that the grid never returns more results
 //! per second than the master can take in or its link carries.
@@ -40,7 +41,7 @@ use crate::scheduler::handout_plan::HandOutPlan;
 use crate::scheduler::job_queue::{JobQueue, NewFrame};
 use crate::scheduler::job_size::{JobSize, MasterSample, REVIEW_PERIOD};
 use crate::shared::counters::Counters;
-use crate::shared::cpu_clock::thread_cpu_seconds;
+use crate::shared::cpu_clock::thread_busy_seconds;
 use crate::shared::holdings::{HeldJob, HeldJobs};
 use crate::shared::job::Job;
 use crate::shared::pacing::Pacing;
@@ -271,9 +272,9 @@ impl Handler<InjectPanic> for Scheduler {
 }
 
 impl Scheduler {
-    /// The actor thread's CPU time, the results answered and the bytes received so far.
+    /// The actor thread's busy time, the results answered and the bytes received so far.
     fn master_now(&self) -> (f64, u64, u64) {
-        (thread_cpu_seconds(), self.answered, Counters::get(&self.counters.bytes_in))
+        (thread_busy_seconds(), self.answered, Counters::get(&self.counters.bytes_in))
     }
 
     /// Measures what the master spent and received per result since the last review and
@@ -282,7 +283,7 @@ impl Scheduler {
         let now = self.master_now();
         let (cpu, results, bytes) = self.last_review;
         let sample = MasterSample {
-            cpu_seconds: now.0 - cpu,
+            busy_seconds: now.0 - cpu,
             results: now.1.saturating_sub(results),
             bytes: now.2.saturating_sub(bytes),
         };
