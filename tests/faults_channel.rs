@@ -249,7 +249,8 @@ struct Flip {
 fn flip_places(conn: &[Vec<u8>; 2]) -> Vec<Flip> {
     let up = records(&conn[0]);
     let down = records(&conn[1]);
-    let job_len = to_frame(&MasterMsg::Job { frame: 1, set: 0, state_version: 1 }).expect("job");
+    let job_len =
+        to_frame(&MasterMsg::Job { frame: 1, set: 0, state_version: 1, spp: 4 }).expect("job");
     let heartbeat = to_frame(&MasterMsg::Heartbeat).expect("heartbeat");
     assert_ne!(job_len.len(), heartbeat.len(), "a job's record would look like a heartbeat's");
     let results: Vec<_> = up.iter().filter(|(_, r)| r.len() > 300).collect();

@@ -153,7 +153,7 @@ async fn a_worker_authenticates_fetches_assets_renders_and_reconnects() {
     let table = SetTable::new(st.resolution, SETS).unwrap();
     peer.send(MasterMsg::State(Box::new(st.clone()))).await.unwrap();
     for set in [5, 9] {
-        peer.send(MasterMsg::Job { frame: 11, set, state_version: 3 }).await.unwrap();
+        peer.send(MasterMsg::Job { frame: 11, set, state_version: 3, spp: 1 }).await.unwrap();
     }
     let mut answered = vec![];
     while answered.len() < 2 {
@@ -198,7 +198,7 @@ async fn a_job_naming_an_unsent_state_ends_the_link() {
     let mut peer = accept(&listener).await;
     handshake(&mut peer, None, vec![]).await;
     assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
-    peer.send(MasterMsg::Job { frame: 1, set: 0, state_version: 42 }).await.unwrap();
+    peer.send(MasterMsg::Job { frame: 1, set: 0, state_version: 42, spp: 1 }).await.unwrap();
     // The worker hangs up on this connection (no result) and reconnects.
     let closed = tokio::time::timeout(STEP, async {
         loop {
@@ -377,21 +377,21 @@ async fn a_pausing_worker_tells_the_master_drops_its_jobs_and_resumes_with_fresh
     assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
     peer.send(MasterMsg::State(Box::new(state(1)))).await.unwrap();
     for set in [0, 1] {
-        peer.send(MasterMsg::Job { frame: 1, set, state_version: 1 }).await.unwrap();
+        peer.send(MasterMsg::Job { frame: 1, set, state_version: 1, spp: 1 }).await.unwrap();
     }
     // The owner comes back while both jobs are held (one rendering, one queued).
     let reason = PauseReason::OwnerInput { seconds_ago: 1.0 };
     owner.send(Activity::Paused(reason.clone())).unwrap();
     assert_eq!(recv(&mut peer).await, WorkerMsg::Paused { reason });
     // A job that was on its way is dropped too; nothing comes back for any of them.
-    peer.send(MasterMsg::Job { frame: 2, set: 0, state_version: 1 }).await.unwrap();
+    peer.send(MasterMsg::Job { frame: 2, set: 0, state_version: 1, spp: 1 }).await.unwrap();
     let sent = recv_within(&mut peer, Duration::from_millis(1500)).await;
     assert!(sent.is_none(), "a paused worker sent {sent:?}");
 
     owner.send(Activity::Working).unwrap();
     assert_eq!(recv(&mut peer).await, WorkerMsg::Resumed);
     assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
-    peer.send(MasterMsg::Job { frame: 3, set: 4, state_version: 1 }).await.unwrap();
+    peer.send(MasterMsg::Job { frame: 3, set: 4, state_version: 1, spp: 1 }).await.unwrap();
     match recv(&mut peer).await {
         WorkerMsg::Result(r) => assert_eq!((r.frame, r.set), (3, 4)),
         other => panic!("expected the new job's result, got {other:?}"),
@@ -441,11 +441,11 @@ async fn a_held_job_of_an_older_state_is_dropped_when_a_newer_states_job_comes()
     assert_eq!(recv(&mut peer).await, WorkerMsg::Ready { credits: 2 });
     peer.send(MasterMsg::State(Box::new(state(1)))).await.unwrap();
     for set in [0, 1] {
-        peer.send(MasterMsg::Job { frame: 1, set, state_version: 1 }).await.unwrap();
+        peer.send(MasterMsg::Job { frame: 1, set, state_version: 1, spp: 1 }).await.unwrap();
     }
     // The scene changed: the first job is being rendered, the second is queued.
     peer.send(MasterMsg::State(Box::new(state(2)))).await.unwrap();
-    peer.send(MasterMsg::Job { frame: 2, set: 0, state_version: 2 }).await.unwrap();
+    peer.send(MasterMsg::Job { frame: 2, set: 0, state_version: 2, spp: 1 }).await.unwrap();
     let mut got = Vec::new();
     while got.len() < 6 {
         got.push(recv(&mut peer).await);

@@ -59,5 +59,5 @@ pub use assembler::{accumulation, wait_heuristic};
 pub use discovery::announcer;
 pub use presenter::{sink, stats};
 pub use scene::{asset_store, edit, script, state};
-pub use shared::{counters, pacing, packed_frame, sets, workers};
+pub use shared::{counters, cpu_clock, pacing, packed_frame, sets, workers};
 pub use wire::{auth, channel, channel_codec, codec, integrity, packing, protocol, rejection};

@@ -93,6 +93,10 @@ pub struct MasterConfig {
     /// A state change discards the queued jobs of older versions and the assembler does
     /// not wait for their held ones (default); `false` only to measure what that gains.
     pub discard_stale_jobs: bool,
+    /// The master's inbound link in bytes per second (`--link-mbps`), when known: the
+    /// scheduler never asks the grid for more result bytes per second than it carries
+    /// (`scheduler::job_size`).
+    pub link_bytes_per_second: Option<f64>,
 }
 
 impl MasterConfig {
@@ -115,6 +119,7 @@ impl MasterConfig {
             inject_panics: Vec::new(),
             announce: None,
             discard_stale_jobs: true,
+            link_bytes_per_second: None,
             sink_in_flight: crate::presenter::DEFAULT_SINK_IN_FLIGHT,
         }
     }
@@ -305,6 +310,7 @@ fn wire(
         threshold,
         pacing: config.pacing,
         policy: config.restart,
+        link_bytes_per_second: config.link_bytes_per_second,
     };
     // Who holds which job: one record, written where a job changes hands.
     let held = Arc::new(HeldJobs::default());

@@ -186,8 +186,9 @@ fn master_msg() -> impl Strategy<Value = MasterMsg> {
             |(hash, offset, len, data)| MasterMsg::AssetChunk { hash, offset, len, data }
         ),
         scene_state().prop_map(|s| MasterMsg::State(Box::new(s))),
-        (any::<u64>(), any::<u32>(), any::<u64>())
-            .prop_map(|(frame, set, state_version)| MasterMsg::Job { frame, set, state_version }),
+        (any::<u64>(), any::<u32>(), any::<u64>(), any::<u32>()).prop_map(
+            |(frame, set, state_version, spp)| MasterMsg::Job { frame, set, state_version, spp }
+        ),
         Just(MasterMsg::Heartbeat),
         prop::collection::vec(any::<u8>(), 0..64).prop_map(|noise| MasterMsg::Handshake { noise }),
     ]

@@ -222,7 +222,7 @@ impl Peer {
         loop {
             match self.recv_non_heartbeat()? {
                 MasterMsg::State(s) => state = Some(*s),
-                MasterMsg::Job { frame, set, state_version } => {
+                MasterMsg::Job { frame, set, state_version, .. } => {
                     return Ok((frame, set, state_version, state))
                 }
                 m => return Err(format!("expected a job, got {m:?}")),

@@ -42,8 +42,9 @@ fn actors_never_depend_on_the_renderer() {
 #[test]
 fn pixel_indices_never_travel() {
     // A job names its set, never its pixels: its size does not depend on the set's.
-    let job =
-        |set| to_frame(&MasterMsg::Job { frame: 1, set, state_version: 1 }).expect("job").len();
+    let job = |set| {
+        to_frame(&MasterMsg::Job { frame: 1, set, state_version: 1, spp: 4 }).expect("job").len()
+    };
     assert_eq!(job(0), job(1));
     // A result carries one packed radiance word per pixel of its set and nothing per
     // pixel besides: n more pixels cost 4·n bytes, give or take the length header.

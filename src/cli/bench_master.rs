@@ -1,7 +1,10 @@
 //! `gridlight bench master`: the master alone, with null-render workers on loopback.
 
+use super::resolution::ResolutionArg;
 use super::GlobalArgs;
-use crate::tools::bench::master::{self as master_bench, BenchOptions, DEFAULT_CONNECTIONS};
+use crate::tools::bench::master::{
+    self as master_bench, BenchOptions, DEFAULT_CONNECTIONS, RESOLUTION,
+};
 
 /// Arguments of `gridlight bench master`.
 #[derive(Debug, Clone, clap::Args)]
@@ -12,6 +15,10 @@ pub struct MasterArgs {
     /// Connection counts to measure.
     #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_CONNECTIONS)]
     pub connections: Vec<u32>,
+    /// Image sizes to measure, each with every connection count (default 640x480;
+    /// for example `640x480,1920x1080,3840x2160`).
+    #[arg(long, value_name = "WxH", value_delimiter = ',')]
+    pub resolution: Vec<ResolutionArg>,
     /// Seconds measured per connection count (after a warm-up).
     #[arg(long, default_value_t = 3.0)]
     pub seconds: f64,
@@ -28,6 +35,11 @@ pub struct MasterArgs {
 pub fn run(args: MasterArgs, _global: &GlobalArgs) -> anyhow::Result<()> {
     let opts = BenchOptions {
         connections: args.connections,
+        resolutions: if args.resolution.is_empty() {
+            vec![RESOLUTION]
+        } else {
+            args.resolution.iter().map(|r| r.0).collect()
+        },
         seconds: args.seconds,
         pipeline: args.pipeline,
         secret: args.secret,

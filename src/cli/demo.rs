@@ -51,6 +51,10 @@ pub struct Args {
     /// Pixel sets per frame.
     #[arg(long, default_value_t = DEFAULT_SETS)]
     pub sets: u32,
+    /// The master's inbound link in Mbit/s: the grid is never asked for more result
+    /// bytes per second than it carries (jobs take more samples per pixel instead).
+    #[arg(long, value_name = "MBIT/S", value_parser = super::master::parse_link_mbps)]
+    pub link_mbps: Option<f64>,
     /// Keep queued jobs of outdated scene states when the scene changes (the old
     /// scheduler; to measure the edit-to-display latency without the discard).
     #[arg(long, hide = true)]
@@ -97,6 +101,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         pacing: args.pacing.overrides(),
         display: args.display.clone(),
         pipeline: gridlight_actors::master::DEFAULT_PIPELINE,
+        link_mbps: args.link_mbps,
         secret: Some(secret_hex),
         announce: AnnounceOptions { enabled: !args.no_announce, to: None, name: None },
         script: args.script.clone(),

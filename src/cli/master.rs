@@ -36,6 +36,15 @@ impl From<PartitionArg> for Partition {
     }
 }
 
+/// `--link-mbps`: the master's inbound link in Mbit/s, positive and finite.
+pub fn parse_link_mbps(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) => Err(format!("the link's rate must be positive and finite, got {v}")),
+        Err(_) => Err(format!("`{s}` is not a rate in Mbit/s (e.g. 1000)")),
+    }
+}
+
 /// How frames are paced: the paper's wait heuristic or a fixed rate.
 #[derive(Debug, Clone, clap::Args)]
 pub struct PacingArgs {
@@ -175,6 +184,10 @@ pub struct Args {
     /// Jobs a worker may hold at once (k; 1 is the paper's request/response).
     #[arg(long, default_value_t = gridlight_actors::master::DEFAULT_PIPELINE)]
     pub pipeline: u32,
+    /// The master's inbound link in Mbit/s: the grid is never asked for more result
+    /// bytes per second than it carries (jobs take more samples per pixel instead).
+    #[arg(long, value_name = "MBIT/S", value_parser = parse_link_mbps)]
+    pub link_mbps: Option<f64>,
     /// Interaction script: a TOML file of timed edits.
     #[arg(long, value_name = "FILE")]
     pub script: Option<PathBuf>,
@@ -226,6 +239,7 @@ impl Args {
             pacing: self.pacing.overrides(),
             display: self.display.clone(),
             pipeline: self.pipeline,
+            link_mbps: self.link_mbps,
             secret,
             announce: self.announce.options(),
             script: self.script.clone(),

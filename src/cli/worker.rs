@@ -100,7 +100,8 @@ pub struct Args {
     /// Answer every job with constant radiance at no cost (for `gridlight bench master`).
     #[arg(long, hide = true)]
     pub null_render: bool,
-    /// With `--null-render`: sleep this long per job, as if rendering (fault-injection tests).
+    /// With `--null-render`: sleep this long per job of the scene's samples per pixel (a job
+    /// of more samples proportionally longer), as if rendering (fault-injection tests).
     #[arg(long, hide = true, default_value_t = 0)]
     pub null_render_delay_ms: u32,
 }

@@ -51,6 +51,8 @@ pub struct MasterOptions {
     pub display: DisplayArgs,
     /// Jobs a worker may hold (k).
     pub pipeline: u32,
+    /// The master's inbound link in Mbit/s (`--link-mbps`), when known.
+    pub link_mbps: Option<f64>,
     pub secret: Option<Vec<u8>>,
     /// Announcing the master on the LAN.
     pub announce: AnnounceOptions,
@@ -133,6 +135,7 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
         bail!("pacing: {why}");
     }
     config.pipeline = opts.pipeline.max(1);
+    config.link_bytes_per_second = opts.link_mbps.map(mbps_to_bytes_per_second);
     config.secret = opts.secret.clone();
     config.max_frames = opts.frames;
     config.announce = opts.announce.config(opts.listen, &opts.scene);
@@ -208,6 +211,11 @@ pub fn run_window(
         bail!("the master stopped on an error: {err}");
     }
     Ok(report)
+}
+
+/// Mbit/s (a link's rate as its operator states it) in bytes per second.
+pub fn mbps_to_bytes_per_second(mbps: f64) -> f64 {
+    mbps * 1e6 / 8.0
 }
 
 fn load_script(

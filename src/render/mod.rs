@@ -226,6 +226,12 @@ impl RenderScene {
         &self.state
     }
 
+    /// Renders `spp` samples per pixel from now on (a job's own; the state's
+    /// `render.spp` until then): nothing is rebuilt.
+    pub fn set_spp(&mut self, spp: u32) {
+        self.state.render.spp = spp.max(1);
+    }
+
     /// Triangles of all visible instances (instanced meshes counted per instance).
     pub fn triangle_count(&self) -> usize {
         self.triangles

@@ -3,7 +3,8 @@
 //!
 //! [`CostModel::measure`] renders real jobs (pixel sets of the scene's view) one at a time
 //! on one thread and records samples per second per job; a simulated worker then takes
-//! `pixels · spp / throughput` per job, scaled by a normal factor of the measured relative
+//! `pixels · spp / throughput` per job (`spp` the job's own, which the master's scheduler
+//! sizes to the grid), scaled by a normal factor of the measured relative
 //! spread (clamped so that no job is free). The measurement runs on whatever else this
 //! machine is doing: jobs are timed in the thread's CPU time, in several rounds, and the
 //! median and the median absolute deviation keep a few jobs that another process slowed
@@ -83,39 +84,27 @@ impl CostModel {
         }
     }
 
-    /// Mean time of a job of `pixels` pixels.
+    /// Mean time of a job of `pixels` pixels at the scene's samples per pixel.
     pub fn mean_job_time(&self, pixels: usize) -> Duration {
+        self.mean_time(pixels, self.spp)
+    }
+
+    /// Mean time of `pixels` pixels at `spp` samples each.
+    pub fn mean_time(&self, pixels: usize, spp: u32) -> Duration {
         Duration::from_secs_f64(
-            pixels as f64 * f64::from(self.spp) / self.samples_per_second * self.time_scale,
+            pixels as f64 * f64::from(spp) / self.samples_per_second * self.time_scale,
         )
     }
 
-    /// One job's time: the mean scaled by `1 + spread·z`, z standard normal.
-    pub fn job_time(&self, pixels: usize, rng: &mut impl Rng) -> Duration {
+    /// One job's time, `pixels` pixels at `spp` samples each: the mean scaled by
+    /// `1 + spread·z`, z standard normal.
+    pub fn job_time(&self, pixels: usize, spp: u32, rng: &mut impl Rng) -> Duration {
         let factor = (1.0 + self.spread * standard_normal(rng)).max(MIN_FACTOR);
-        self.mean_job_time(pixels).mul_f64(factor)
+        self.mean_time(pixels, spp).mul_f64(factor)
     }
 }
 
-/// CPU time consumed by the calling thread, in seconds (NaN where the clock fails, and
-/// on platforms without a thread CPU clock in `libc`: callers then time by the wall).
-#[cfg(not(any(target_os = "linux", target_os = "macos")))]
-pub fn thread_cpu_seconds() -> f64 {
-    f64::NAN
-}
-
-/// CPU time consumed by the calling thread, in seconds (NaN where the clock fails).
-#[cfg(any(target_os = "linux", target_os = "macos"))]
-pub fn thread_cpu_seconds() -> f64 {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: `ts` is a valid out-pointer; this clock exists on every Linux kernel and
-    // on macOS since 10.12.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return f64::NAN;
-    }
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
+pub use gridlight_actors::cpu_clock::thread_cpu_seconds;
 
 /// Median of a non-empty slice (0 when empty).
 fn median(values: &[f64]) -> f64 {
@@ -148,7 +137,9 @@ mod tests {
     fn the_mean_job_takes_its_samples_at_the_measured_rate() {
         assert_eq!(model(0.0).mean_job_time(4800), Duration::from_secs_f64(4800.0 * 4.0 / 1e6));
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
-        assert_eq!(model(0.0).job_time(4800, &mut rng), model(0.0).mean_job_time(4800));
+        assert_eq!(model(0.0).job_time(4800, 4, &mut rng), model(0.0).mean_job_time(4800));
+        let eight = model(0.0).job_time(4800, 8, &mut rng);
+        assert_eq!(eight, model(0.0).mean_job_time(4800) * 2, "a job's own samples per pixel");
     }
 
     #[test]
@@ -161,7 +152,8 @@ mod tests {
     fn sampled_times_have_the_measured_mean_and_spread() {
         let m = model(0.1);
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
-        let t: Vec<f64> = (0..20_000).map(|_| m.job_time(1000, &mut rng).as_secs_f64()).collect();
+        let t: Vec<f64> =
+            (0..20_000).map(|_| m.job_time(1000, 4, &mut rng).as_secs_f64()).collect();
         let mean = t.iter().sum::<f64>() / t.len() as f64;
         let sd = (t.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / t.len() as f64).sqrt();
         let expected = m.mean_job_time(1000).as_secs_f64();
@@ -174,6 +166,6 @@ mod tests {
         let m = model(3.0);
         let mut rng = rand::rngs::StdRng::seed_from_u64(3);
         let floor = m.mean_job_time(100).mul_f64(MIN_FACTOR);
-        assert!((0..1000).all(|_| m.job_time(100, &mut rng) >= floor));
+        assert!((0..1000).all(|_| m.job_time(100, 4, &mut rng) >= floor));
     }
 }

@@ -125,7 +125,7 @@ impl SimConnection {
             )));
         }
         let radiance: Vec<u32> = pixels.iter().map(|&p| frame[p as usize]).collect();
-        let took = self.grid.cache.cost.job_time(pixels.len(), &mut self.rng);
+        let took = self.grid.cache.cost.job_time(pixels.len(), job.spp, &mut self.rng);
         let done = self.busy_until.max(Instant::now()) + took;
         self.busy_until = done;
         let result = key.seal(
@@ -228,6 +228,7 @@ mod tests {
             frame,
             set,
             state: Arc::new(state.clone()),
+            spp: 1,
         };
         let t0 = Instant::now();
         conn.submit(&job(1, 0, &old), &table, &key, &tx).expect("held");

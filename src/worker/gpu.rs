@@ -140,10 +140,11 @@ fn run(tracer: GpuTracer, rx: std_mpsc::Receiver<Queued>) {
         }
         batch.retain(live);
         while !batch.is_empty() {
-            // One scene state per dispatch, the first job's; the others wait their turn.
-            let version = batch[0].job.state.version;
+            // One scene state and samples per pixel per dispatch, the first job's; the
+            // others wait their turn.
+            let (version, spp) = (batch[0].job.state.version, batch[0].job.spp);
             let (group, rest): (Vec<Queued>, Vec<Queued>) =
-                batch.into_iter().partition(|q| q.job.state.version == version);
+                batch.into_iter().partition(|q| q.job.state.version == version && q.job.spp == spp);
             batch = rest;
             if let Err(err) = render_group(&tracer, &group, &mut scene, &mut uploaded, &mut samples)
             {
@@ -188,7 +189,8 @@ fn render_group(
     if uploaded.as_ref().is_none_or(|u| u.version() != state.version) {
         *uploaded = Some(tracer.upload(scene));
     }
-    let uploaded = uploaded.as_ref().ok_or_else(|| WorkerError::Render("no GPU scene".into()))?;
+    let uploaded = uploaded.as_mut().ok_or_else(|| WorkerError::Render("no GPU scene".into()))?;
+    uploaded.set_spp(first.job.spp);
     let mut tables = Vec::with_capacity(group.len());
     for q in group {
         let table = q.link.shared.set_table(state.resolution, q.link.sets).map_err(|e| {

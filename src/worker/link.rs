@@ -211,7 +211,12 @@ where
                         states.pop_first();
                     }
                 }
-                Some(MasterMsg::Job { frame, set, state_version }) => {
+                Some(MasterMsg::Job { frame, set, state_version, spp }) => {
+                    if spp == 0 {
+                        return Err(WorkerError::Protocol(format!(
+                            "job (frame {frame}, set {set}) asks for 0 samples per pixel"
+                        )));
+                    }
                     let Some(state) = states.get(&state_version) else {
                         return Err(WorkerError::Protocol(format!(
                             "job (frame {frame}, set {set}) names state version {state_version}, which was never sent"
@@ -224,7 +229,7 @@ where
                         continue;
                     }
                     live.insert((frame, set));
-                    render.submit(RenderJob { frame, set, state: Arc::clone(state) })?;
+                    render.submit(RenderJob { frame, set, state: Arc::clone(state), spp })?;
                 }
                 Some(MasterMsg::Heartbeat) => {}
                 Some(MasterMsg::Rejected { reason }) => {

@@ -65,12 +65,13 @@ pub enum RendererKind {
     Gpu(Arc<super::gpu::GpuRenderer>),
 }
 
-/// One job with the scene state it names.
+/// One job with the scene state it names and the samples per pixel it asks for.
 #[derive(Clone, Debug)]
 pub struct RenderJob {
     pub frame: FrameNo,
     pub set: SetNo,
     pub state: Arc<SceneState>,
+    pub spp: u32,
 }
 
 /// What the renderer says about one job.
@@ -286,7 +287,11 @@ impl Renderer {
         let radiance = match self.kind {
             RendererKind::Null { delay_ms } => {
                 if delay_ms > 0 {
-                    std::thread::sleep(std::time::Duration::from_millis(delay_ms.into()));
+                    // The delay is a job of the state's samples per pixel: a job of more
+                    // takes proportionally longer, as a renderer's would.
+                    let scale = f64::from(job.spp) / f64::from(job.state.render.spp.max(1));
+                    let delay = std::time::Duration::from_millis(delay_ms.into());
+                    std::thread::sleep(delay.mul_f64(scale));
                 }
                 vec![encode_rgb9e5(null_radiance(job.frame)); pixels.len()]
             }
@@ -297,8 +302,9 @@ impl Renderer {
                 self.update_scene(&job.state)?;
                 let scene = self
                     .scene
-                    .as_ref()
+                    .as_mut()
                     .ok_or_else(|| WorkerError::Render("no render scene".into()))?;
+                scene.set_spp(job.spp);
                 render_pixels(scene, job.frame, pixels, &mut self.samples);
                 // A NaN would be a renderer bug: refuse it here rather than send it.
                 match gridlight_actors::packing::pack(

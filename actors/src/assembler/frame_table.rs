@@ -48,6 +48,8 @@ pub struct Progress {
 #[derive(Debug)]
 struct OpenFrame {
     state: Arc<SceneState>,
+    /// Samples per pixel of each of its jobs.
+    spp: u32,
     scheduled_at: Instant,
     started_at: Option<Instant>,
     /// Lost in a restart of the assembler: it accepts nothing and is skipped.
@@ -82,6 +84,7 @@ impl FrameTable {
             .map(|(f, o)| {
                 let lost = OpenFrame {
                     state: o.state.clone(),
+                    spp: o.spp,
                     scheduled_at: o.scheduled_at,
                     started_at: o.started_at,
                     lost: true,
@@ -95,14 +98,15 @@ impl FrameTable {
         Self { sets: self.sets.clone(), frames, closed_upto: self.closed_upto }
     }
 
-    /// The scheduler queued `frame` with `state` at `now`.
-    pub fn open(&mut self, frame: FrameNo, state: Arc<SceneState>, now: Instant) {
+    /// The scheduler queued `frame` with `state`, `spp` samples per pixel per job, at `now`.
+    pub fn open(&mut self, frame: FrameNo, state: Arc<SceneState>, spp: u32, now: Instant) {
         if self.is_closed(frame) {
             return;
         }
         let s = self.sets.sets() as usize;
         self.frames.entry(frame).or_insert(OpenFrame {
             state,
+            spp,
             scheduled_at: now,
             started_at: None,
             lost: false,
@@ -156,6 +160,7 @@ impl FrameTable {
         Some(ClosedFrame {
             frame,
             state: open.state,
+            spp: open.spp,
             results: open.results,
             total: open.owners.len() as u32,
             owners: open.owners,
@@ -223,11 +228,11 @@ mod tests {
     fn keeps_each_accepted_set_with_the_connection_that_sent_it() {
         let mut t = table();
         let now = Instant::now();
-        t.open(0, state(3), now);
+        t.open(0, state(3), 4, now);
         assert_eq!(t.accept(7, 0, 1, radiance(2.0)), Admission::Accepted { back: 1, total: 4 });
         assert_eq!(t.oldest().map(|(f, p)| (f, p.back, p.total, p.version)), Some((0, 1, 4, 3)));
         let closed = t.close(0).expect("open frame");
-        assert_eq!((closed.back, closed.total), (1, 4));
+        assert_eq!((closed.back, closed.total, closed.spp), (1, 4, 4));
         assert_eq!(closed.owners, [None, Some(7), None, None]);
         let (radiance, mask) = closed.results.unpack();
         let covered: Vec<usize> = (0..64).filter(|p| mask[*p]).collect();
@@ -241,7 +246,7 @@ mod tests {
     #[test]
     fn a_second_result_for_one_set_means_it_was_handed_out_twice() {
         let mut t = table();
-        t.open(0, state(3), Instant::now());
+        t.open(0, state(3), 4, Instant::now());
         t.accept(7, 0, 1, radiance(2.0));
         assert_eq!(t.accept(8, 0, 1, radiance(3.0)), Admission::HandedTwice);
         assert_eq!(t.close(0).expect("open").owners[1], Some(7), "the first result stays");
@@ -251,7 +256,7 @@ mod tests {
     fn a_frame_starts_at_its_first_hand_out() {
         let mut t = table();
         let (t0, t1) = (Instant::now(), Instant::now() + std::time::Duration::from_millis(5));
-        t.open(0, state(1), t0);
+        t.open(0, state(1), 4, t0);
         assert_eq!(t.oldest().map(|(_, p)| p.started_at), Some(None));
         t.start(0, t1);
         t.start(0, t1 + std::time::Duration::from_millis(5));
@@ -262,9 +267,9 @@ mod tests {
     fn results_for_displayed_frames_are_late_and_never_reach_an_image() {
         let mut t = table();
         let now = Instant::now();
-        t.open(0, state(1), now);
-        t.open(1, state(1), now);
-        t.open(2, state(1), now);
+        t.open(0, state(1), 4, now);
+        t.open(1, state(1), 4, now);
+        t.open(2, state(1), 4, now);
         assert_eq!(t.accept(1, 2, 0, radiance(1.0)), Admission::Accepted { back: 1, total: 4 });
         assert!(t.later_has_results(1) && !t.later_has_results(2));
         let closed = t.close(1).expect("frame 1");
@@ -272,7 +277,7 @@ mod tests {
         assert_eq!(t.accept(1, 0, 0, radiance(1.0)), Admission::Late, "passed-over frame");
         assert_eq!(t.accept(1, 1, 0, radiance(1.0)), Admission::Late);
         assert!(t.close(0).is_none() && t.close(1).is_none());
-        t.open(1, state(1), now);
+        t.open(1, state(1), 4, now);
         assert_eq!(t.open_frames(), 1, "a displayed frame was reopened");
         assert_eq!(t.accept(1, 5, 0, radiance(1.0)), Admission::Unknown, "never opened");
     }
@@ -281,15 +286,15 @@ mod tests {
     fn a_restart_keeps_the_displayed_boundary_and_loses_the_frames_in_flight() {
         let mut t = table();
         let now = Instant::now();
-        t.open(3, state(1), now);
-        t.open(4, state(1), now);
+        t.open(3, state(1), 4, now);
+        t.open(4, state(1), 4, now);
         t.accept(1, 4, 0, radiance(1.0));
         t.close(3);
         let mut r = t.restarted();
-        r.open(2, state(1), now);
+        r.open(2, state(1), 4, now);
         assert_eq!(r.oldest().map(|(f, p)| (f, p.back)), Some((4, 0)), "frame 4 kept, empty");
         assert_eq!(r.accept(1, 4, 1, radiance(1.0)), Admission::Unknown, "lost frames take none");
-        r.open(5, state(1), now);
+        r.open(5, state(1), 4, now);
         assert_eq!(r.accept(1, 5, 1, radiance(1.0)), Admission::Accepted { back: 1, total: 4 });
     }
 }

@@ -141,7 +141,7 @@ impl Handler<FrameScheduled> for Assembler {
     fn handle(&mut self, msg: FrameScheduled, ctx: &mut Context<Self>) {
         self.guarded(ctx, |a, ctx| {
             a.displayed_to = Some(msg.displayed_to);
-            a.table.open(msg.frame, msg.state, Instant::now());
+            a.table.open(msg.frame, msg.state, msg.spp, Instant::now());
             a.evaluate(ctx);
         });
     }

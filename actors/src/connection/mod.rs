@@ -346,7 +346,13 @@ impl Connection {
                 Action::Answered { result, handed_at } => {
                     self.config.workers.heard(self.id, 1);
                     self.config.workers.timed(self.id, result.render_us);
-                    self.links.answered_to.do_send(JobAnswered { conn: self.id, handed_at });
+                    let (frame, render_us) = (result.frame, result.render_us);
+                    self.links.answered_to.do_send(JobAnswered {
+                        conn: self.id,
+                        frame,
+                        handed_at,
+                        render_us,
+                    });
                     self.links.results_to.do_send(ResultArrived { conn: self.id, result });
                 }
                 Action::Duplicate { frame, set } => {

@@ -17,6 +17,8 @@ use crate::wire::protocol::{ConnId, FrameNo, JobResult};
 pub struct FrameScheduled {
     pub frame: FrameNo,
     pub state: Arc<SceneState>,
+    /// Samples per pixel of each of its jobs.
+    pub spp: u32,
     pub displayed_to: Recipient<FrameDisplayed>,
 }
 

@@ -27,13 +27,16 @@ pub struct WorkerLeft {
     pub lost: Vec<FrameNo>,
 }
 
-/// A connection received its worker's result for a job handed out at `handed_at` (in
-/// time or not): the worker's job time is measured from these.
+/// A connection received its worker's result for a job of `frame` handed out at
+/// `handed_at` (in time or not), rendered in `render_us` by the worker's account: the
+/// worker's job time and the grid's speed are measured from these.
 #[derive(Message, Clone, Copy)]
 #[rtype(result = "()")]
 pub struct JobAnswered {
     pub conn: ConnId,
+    pub frame: FrameNo,
     pub handed_at: Instant,
+    pub render_us: u64,
 }
 
 /// To a connection: jobs handed to it.

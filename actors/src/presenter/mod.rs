@@ -256,6 +256,7 @@ impl Presenter {
             frame: closed.frame,
             state_version: version,
             jobs_back: closed.back,
+            spp: closed.spp,
             jobs_total: closed.total,
             q,
             i,

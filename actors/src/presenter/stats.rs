@@ -16,6 +16,9 @@ pub struct FrameStats {
     pub state_version: StateVersion,
     /// Results of this frame that came back in time.
     pub jobs_back: u32,
+    /// Samples per pixel of each of them (the scheduler sizes jobs to the grid:
+    /// `scheduler::job_size`).
+    pub spp: u32,
     /// Jobs of this frame (S).
     pub jobs_total: u32,
     /// Q_t when the frame was shown.

@@ -22,6 +22,10 @@
 //!   back, I_min times the last frame's time after its first hand-out, so that is its
 //!   deadline. The frame window grows with the grid so that every credit can be served.
 //!
+//! Job times are measured whatever the job's samples per pixel (`job_size`): when the job
+//! size changes, the smoothed estimate follows within a few results; the size changes
+//! in steps, rarely, so forecasts are off only briefly.
+//!
 //! A connection that holds nothing always gets a job (of the newest open frame when none
 //! fits), so a worker that once looked slow keeps being measured. Nothing here redoes a
 //! job: the plan only chooses among sets not handed out yet.

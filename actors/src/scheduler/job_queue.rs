@@ -13,7 +13,8 @@
 //!
 //! Only a frame's `quota` of sets is queued (all S unless set): the jobs the display can use
 //! (`handout_plan`). The frame window can be widened so that a large grid's credits can all
-//! be served from frames in flight.
+//! be served from frames in flight. Every job of a frame takes the samples per pixel the
+//! queue had when the frame was opened (`job_size`): a frame's results are alike.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
@@ -27,6 +28,8 @@ use crate::wire::protocol::{FrameNo, SetNo};
 pub struct NewFrame {
     pub frame: FrameNo,
     pub state: Arc<SceneState>,
+    /// Samples per pixel of each of its jobs.
+    pub spp: u32,
 }
 
 /// Frames × sets waiting to be handed out.
@@ -40,8 +43,11 @@ pub struct JobQueue {
     base_frames_open: u64,
     max_frames_open: u64,
     queue: VecDeque<Job>,
-    /// Sets queued so far (quota and replacements) and the state of every open frame.
-    opened: BTreeMap<FrameNo, (u32, Arc<SceneState>)>,
+    /// Sets queued so far (quota and replacements), the state and the samples per pixel
+    /// of every open frame.
+    opened: BTreeMap<FrameNo, (u32, Arc<SceneState>, u32)>,
+    /// Samples per pixel of the jobs of frames opened from now on.
+    spp: u32,
     /// Number the next scheduled frame gets.
     next_frame: FrameNo,
     /// Frames below this were displayed (shown or skipped).
@@ -66,8 +72,19 @@ impl JobQueue {
             opened: BTreeMap::new(),
             next_frame: first_frame,
             first_open: first_frame,
+            spp: state.render.spp.max(1),
             state,
         }
+    }
+
+    /// Frames opened from now on take `spp` samples per pixel per job (at least 1).
+    pub fn set_spp(&mut self, spp: u32) {
+        self.spp = spp.max(1);
+    }
+
+    /// Samples per pixel of the jobs of the next frame opened.
+    pub fn spp(&self) -> u32 {
+        self.spp
     }
 
     /// New frames use `state` from now on; queued jobs keep the state they were made with
@@ -86,7 +103,7 @@ impl JobQueue {
         let before = self.queue.len();
         self.queue.retain(|j| j.state.version >= version);
         // Their frames get no more sets either (`queue_more`).
-        self.opened.retain(|_, (_, state)| state.version >= version);
+        self.opened.retain(|_, (_, state, _)| state.version >= version);
         before - self.queue.len()
     }
 
@@ -124,13 +141,13 @@ impl JobQueue {
         }
         let frame = self.next_frame;
         self.next_frame += 1;
-        let first = first_set(frame, self.sets);
+        let (first, spp) = (first_set(frame, self.sets), self.spp);
         for i in 0..self.quota {
             let set = (first + i) % self.sets;
-            self.queue.push_back(Job { frame, set, state: self.state.clone() });
+            self.queue.push_back(Job { frame, set, state: self.state.clone(), spp });
         }
-        self.opened.insert(frame, (self.quota, self.state.clone()));
-        Some(NewFrame { frame, state: self.state.clone() })
+        self.opened.insert(frame, (self.quota, self.state.clone(), spp));
+        Some(NewFrame { frame, state: self.state.clone(), spp })
     }
 
     /// Queues up to `n` more sets of an open frame, ones never queued before (a worker left
@@ -138,14 +155,15 @@ impl JobQueue {
     /// returns how many were queued. A frame never gets more than S sets.
     pub fn queue_more(&mut self, frame: FrameNo, n: u32) -> u32 {
         let sets = self.sets;
-        let Some((queued, state)) = self.opened.get_mut(&frame) else { return 0 };
+        let Some((queued, state, spp)) = self.opened.get_mut(&frame) else { return 0 };
         let more = n.min(sets - *queued);
         let first = first_set(frame, sets);
         // Behind the frame's own jobs, before later frames'.
         let at = self.queue.iter().position(|j| j.frame > frame).unwrap_or(self.queue.len());
         for i in 0..more {
             let set = (first + *queued + i) % sets;
-            self.queue.insert(at + i as usize, Job { frame, set, state: state.clone() });
+            let job = Job { frame, set, state: state.clone(), spp: *spp };
+            self.queue.insert(at + i as usize, job);
         }
         *queued += more;
         more
@@ -340,6 +358,26 @@ pub(crate) mod tests {
         assert_eq!(sets, vec![0, 1, 2, 3], "every set once");
         q.frame_displayed(0);
         assert_eq!(q.queue_more(0, 1), 0, "a displayed frame gets nothing");
+    }
+
+    #[test]
+    fn every_job_of_a_frame_takes_the_samples_per_pixel_it_was_opened_with() {
+        let mut q = JobQueue::new(4, 4, state(1), 0);
+        q.set_quota(2);
+        assert_eq!(q.spp(), 4, "the state's own samples per pixel at first");
+        assert_eq!(
+            q.top_up().iter().map(|f| (f.frame, f.spp)).collect::<Vec<_>>(),
+            [(0, 4), (1, 4)]
+        );
+        q.set_spp(16);
+        assert_eq!(q.open_frame().map(|f| (f.frame, f.spp)), Some((2, 16)));
+        assert!(q.take_from(0).is_some_and(|j| j.spp == 4), "an open frame keeps its own");
+        assert_eq!(q.queue_more(0, 1), 1);
+        let jobs = q.take(100);
+        assert_eq!(jobs.len(), 6);
+        assert!(jobs.iter().all(|j| j.spp == if j.frame == 2 { 16 } else { 4 }));
+        q.set_spp(0);
+        assert_eq!(q.spp(), 1, "never less than one sample");
     }
 
     #[test]

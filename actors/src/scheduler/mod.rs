@@ -13,9 +13,18 @@
 //! wait for the jobs of those frames still held by workers ([`FramesOutdated`]), so that
 //! the first frame of the new state is not queued behind a view the user has left (the
 //! edit-to-display latency).
+//!
+//! Jobs are sized to the live grid ([`JobSize`]): every [`job_size::REVIEW_PERIOD`] the
+//! scheduler measures what its own thread (the actor thread, which every connection,
+//! the assembler and the presenter share) spent (running or waiting for a core) and
+//! received per result, and with the
+//! workers' render times and the inbound link's rate decides how many samples per pixel
+//! the jobs of the frames it opens next take, so that the grid never returns more results
+//! per second than the master can take in or its link carries.
 
 pub mod handout_plan;
 pub mod job_queue;
+pub mod job_size;
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -29,12 +38,16 @@ use crate::messages::{
 };
 use crate::scene::state::SceneState;
 use crate::scheduler::handout_plan::HandOutPlan;
-use crate::scheduler::job_queue::JobQueue;
+use crate::scheduler::job_queue::{JobQueue, NewFrame};
+use crate::scheduler::job_size::{JobSize, MasterSample, REVIEW_PERIOD};
 use crate::shared::counters::Counters;
+use crate::shared::cpu_clock::thread_busy_seconds;
 use crate::shared::holdings::{HeldJob, HeldJobs};
 use crate::shared::job::Job;
 use crate::shared::pacing::Pacing;
-use crate::supervision::{ActorKind, Guard, InjectPanic, RestartPolicy, Supervised, Supervision};
+use crate::supervision::{
+    ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
+};
 use crate::wire::protocol::ConnId;
 use crate::wire::protocol::FrameNo;
 
@@ -57,6 +70,13 @@ pub struct Scheduler {
     queue: JobQueue,
     /// Which frame each job should come from.
     plan: HandOutPlan,
+    /// How many samples per pixel the jobs of the next frames take.
+    size: JobSize,
+    /// Results answered so far, and the actor thread's CPU time, the results and the bytes
+    /// received at the last review.
+    answered: u64,
+    last_review: (f64, u64, u64),
+    review_timer: Option<SpawnHandle>,
     /// Who holds which job: the master's one record, shared with the connections.
     held: Arc<HeldJobs>,
     /// Connections with unserved credits, served front first.
@@ -79,6 +99,9 @@ pub struct SchedulerConfig {
     pub threshold: usize,
     pub pacing: Pacing,
     pub policy: RestartPolicy,
+    /// The master's inbound link, in bytes per second, when known (`--link-mbps`): results
+    /// never ask for more ([`JobSize`]).
+    pub link_bytes_per_second: Option<f64>,
 }
 
 impl Scheduler {
@@ -89,11 +112,17 @@ impl Scheduler {
         counters: Arc<Counters>,
         held: Arc<HeldJobs>,
     ) -> Self {
-        let SchedulerConfig { sets, threshold, pacing, policy } = config;
+        let SchedulerConfig { sets, threshold, pacing, policy, link_bytes_per_second } = config;
         let plan = HandOutPlan::new(pacing);
+        let set_pixels = state.resolution.pixels().div_ceil(sets.max(1) as usize);
+        let size = JobSize::new(state.render.spp, link_bytes_per_second, set_pixels);
         let mut queue = JobQueue::new(sets, threshold, state, 0);
         queue.set_quota(plan.quota(sets));
         Self {
+            size,
+            answered: 0,
+            last_review: (f64::NAN, 0, 0),
+            review_timer: None,
             discard_stale: true,
             sets,
             threshold,
@@ -132,6 +161,11 @@ impl Supervised for Scheduler {
 
     fn on_start(&mut self, ctx: &mut Context<Self>) {
         self.me = Some(ctx.address().recipient());
+        if let Some(timer) = self.review_timer.take() {
+            ctx.cancel_future(timer); // a restart starts it again
+        }
+        self.last_review = self.master_now();
+        self.review_timer = Some(ctx.run_interval_guarded(REVIEW_PERIOD, |s, _| s.review()));
         self.dispatch();
     }
 
@@ -142,6 +176,7 @@ impl Supervised for Scheduler {
         let first = self.queue.next_frame();
         self.queue = JobQueue::new(self.sets, self.threshold, state, first);
         self.queue.set_quota(self.plan.quota(self.sets));
+        self.queue.set_spp(self.size.spp());
         self.links.abandoned_to.do_send(FramesAbandoned { before: first });
     }
 }
@@ -190,6 +225,7 @@ impl Handler<WorkerLeft> for Scheduler {
                 s.queue.queue_more(frame, 1);
             }
             s.plan.left(msg.conn);
+            s.size.left(msg.conn);
             s.dispatch();
         });
     }
@@ -198,7 +234,11 @@ impl Handler<WorkerLeft> for Scheduler {
 impl Handler<JobAnswered> for Scheduler {
     type Result = ();
     fn handle(&mut self, msg: JobAnswered, ctx: &mut Context<Self>) {
-        self.guarded(ctx, |s, _| s.plan.answered(msg.conn, msg.handed_at, Instant::now()));
+        self.guarded(ctx, |s, _| {
+            s.plan.answered(msg.conn, msg.handed_at, Instant::now());
+            s.size.answered(msg.conn, msg.frame, msg.render_us);
+            s.answered += 1;
+        });
     }
 }
 
@@ -232,6 +272,37 @@ impl Handler<InjectPanic> for Scheduler {
 }
 
 impl Scheduler {
+    /// The actor thread's busy time, the results answered and the bytes received so far.
+    fn master_now(&self) -> (f64, u64, u64) {
+        (thread_busy_seconds(), self.answered, Counters::get(&self.counters.bytes_in))
+    }
+
+    /// Measures what the master spent and received per result since the last review and
+    /// sizes the jobs of the frames opened from now on.
+    fn review(&mut self) {
+        let now = self.master_now();
+        let (cpu, results, bytes) = self.last_review;
+        let sample = MasterSample {
+            busy_seconds: now.0 - cpu,
+            results: now.1.saturating_sub(results),
+            bytes: now.2.saturating_sub(bytes),
+        };
+        self.size.observe_master(sample);
+        self.last_review = now;
+        let before = self.queue.spp();
+        let spp = self.size.review(self.queue.next_frame());
+        if spp != before {
+            tracing::info!(
+                spp,
+                before,
+                grid_rate = self.size.grid_rate(),
+                affordable = self.size.affordable(),
+                "job size changed"
+            );
+            self.queue.set_spp(spp);
+        }
+    }
+
     /// Serves every waiting connection in turn, each job from the frame the plan chooses
     /// for it; a connection that no queued frame suits keeps its credits for later.
     fn dispatch(&mut self) {
@@ -269,7 +340,7 @@ impl Scheduler {
             let mut frame = self.choose(conn, now);
             while !frame.is_some_and(|f| self.plan.fits(conn, self.held.lock().of(conn), f, now)) {
                 let Some(f) = self.queue.open_frame() else { break };
-                self.scheduled(f.frame, f.state);
+                self.scheduled(f);
                 frame = self.choose(conn, now);
             }
             let Some(job) = frame.and_then(|f| self.queue.take_from(f)) else { break };
@@ -291,15 +362,16 @@ impl Scheduler {
     /// Adds frames to the queue and tells the assembler about them.
     fn top_up(&mut self) {
         for f in self.queue.top_up() {
-            self.scheduled(f.frame, f.state);
+            self.scheduled(f);
         }
     }
 
     /// Tells the assembler about a new frame, before any of its jobs can leave.
-    fn scheduled(&self, frame: FrameNo, state: Arc<SceneState>) {
+    fn scheduled(&self, f: NewFrame) {
         if let Some(me) = &self.me {
             let displayed_to = me.clone();
-            self.links.frames_to.do_send(FrameScheduled { frame, state, displayed_to });
+            let NewFrame { frame, state, spp } = f;
+            self.links.frames_to.do_send(FrameScheduled { frame, state, spp, displayed_to });
         }
     }
 }

@@ -8,9 +8,11 @@
 //! - [`pacing`]: how frames are paced (the wait heuristic's parameters or a fixed rate);
 //! - [`packed_frame`]: a frame's accepted results, packed, and the frame closed for display;
 //! - [`workers`]: the table of connected workers (the status panel's rows);
-//! - [`counters`]: the master run's counters.
+//! - [`counters`]: the master run's counters;
+//! - [`cpu_clock`]: the calling thread's CPU time (the master's cost per result).
 
 pub mod counters;
+pub mod cpu_clock;
 pub mod holdings;
 pub mod job;
 pub mod line_budget;

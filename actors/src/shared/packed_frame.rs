@@ -23,6 +23,8 @@ use crate::wire::protocol::{ConnId, FrameNo, SetNo};
 pub struct ClosedFrame {
     pub frame: FrameNo,
     pub state: Arc<SceneState>,
+    /// Samples per pixel of each of its results (the scheduler's job size for it).
+    pub spp: u32,
     /// The accepted results.
     pub results: PackedFrame,
     /// Per set, the connection whose result was accepted (`None`: no result).

@@ -51,7 +51,10 @@
 //!    jobs it can hold; at most `k` in total: docs/design.md, decision 7). For each job the
 //!    master sends, *before the first job that names a state version on this
 //!    connection*, that [`MasterMsg::State`]; then [`MasterMsg::Job`]. A worker never
-//!    renders with a state it was not sent. Each job is answered by exactly one
+//!    renders with a state it was not sent. A job names its samples per pixel, which
+//!    every job of one frame shares and which may change between frames (the scheduler
+//!    sizes jobs to the grid: `scheduler::job_size`); a result's size never depends on
+//!    it. Each job is answered by exactly one
 //!    [`WorkerMsg::Result`], whose frame, set and state version must equal the job's,
 //!    and whose radiance holds exactly one pixel per pixel of the set (pixel indices
 //!    never travel: both sides derive them from `(resolution, sets, partition, set)`).
@@ -119,7 +122,9 @@ pub use crate::scene::asset_store::{AssetEntry, AssetHash};
 /// 8: `WorkerMsg::Superseded` (a held job dropped unrendered for a newer state's job).
 /// 9: with a secret, the encrypted channel (`Handshake` messages, records); results carry
 ///    a tag only on plain connections (`JobResult::tag` is optional), keyed BLAKE3 is gone.
-pub const PROTOCOL_VERSION: u32 = 9;
+/// 10: every `Job` names its samples per pixel (`MasterMsg::Job::spp`): the scheduler sizes
+///    jobs to the grid, the master's cost per result and its link (`scheduler::job_size`).
+pub const PROTOCOL_VERSION: u32 = 10;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
@@ -349,8 +354,10 @@ pub enum MasterMsg {
     },
     /// A scene state, sent before the first job on this connection that names it.
     State(Box<SceneState>),
-    /// Render set `set` of frame `frame` with state `state_version`.
-    Job { frame: FrameNo, set: SetNo, state_version: StateVersion },
+    /// Render set `set` of frame `frame` with state `state_version`, taking `spp` samples
+    /// per pixel (at least 1; the state's own `render.spp` is only the default the
+    /// scheduler starts from). A job with `spp` 0 ends the link as a protocol error.
+    Job { frame: FrameNo, set: SetNo, state_version: StateVersion, spp: u32 },
     /// Nothing else to say; keeps the connection alive.
     Heartbeat,
     /// The answer to [`WorkerMsg::Handshake`], sent plain: the Noise handshake's second

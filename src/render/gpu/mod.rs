@@ -67,6 +67,12 @@ impl GpuScene {
     pub fn version(&self) -> u64 {
         self.version
     }
+
+    /// Dispatches from now on take `spp` samples per pixel (a job's own; the state's
+    /// `render.spp` until then): nothing is uploaded again.
+    pub fn set_spp(&mut self, spp: u32) {
+        self.params.image[2] = spp.max(1);
+    }
 }
 
 /// One job's pixels: its frame (which seeds its samples) and pixel indices.

@@ -8,7 +8,10 @@
 //! whole assembled frames. Each configuration warms up for a few frames, then is
 //! measured over a fixed interval; one JSON object per line. Before the workers start,
 //! a scripted worker joins [`HANDSHAKES`] times (connect to `Welcome`, the encrypted
-//! channel's handshake included with a secret): the median is `handshake_ms`.
+//! channel's handshake included with a secret): the median is `handshake_ms`. Each
+//! resolution (`--resolution`, the paper's 640×480 by default) is measured with each
+//! connection count; `bytes_in_per_frame` is what one whole frame costs the master's
+//! inbound link (the figure `--link-mbps` budgets against).
 
 use std::net::SocketAddr;
 use std::process::{Command, Stdio};
@@ -29,7 +32,7 @@ use crate::tools::bench::join;
 
 /// Connection counts measured by default (issue 3).
 pub const DEFAULT_CONNECTIONS: [u32; 4] = [1, 8, 32, 64];
-/// Image size of the benchmark (the paper's).
+/// Image size of the benchmark by default (the paper's).
 pub const RESOLUTION: Resolution = Resolution { width: 640, height: 480 };
 /// Sets per frame.
 pub const SETS: u32 = 64;
@@ -50,6 +53,10 @@ pub struct MasterBench {
     pub bytes_per_pixel: f64,
     /// Result bytes (worker → master) per pixel delivered.
     pub bytes_in_per_pixel: f64,
+    /// Bytes into the master per whole frame shown (results, credits, heartbeats).
+    pub bytes_in_per_frame: f64,
+    /// Bytes both ways per whole frame shown.
+    pub bytes_per_frame: f64,
     /// Bytes on the wire (both directions) per result accepted: the result, its credit
     /// and its job, with framing (and records and tags when encrypted).
     pub bytes_per_result: f64,
@@ -74,6 +81,8 @@ pub struct MasterBench {
 #[derive(Debug, Clone)]
 pub struct BenchOptions {
     pub connections: Vec<u32>,
+    /// Image sizes, each measured with every connection count.
+    pub resolutions: Vec<Resolution>,
     pub seconds: f64,
     /// Jobs a worker holds (k).
     pub pipeline: u32,
@@ -89,8 +98,10 @@ pub fn run(opts: &BenchOptions, mut emit: impl FnMut(&MasterBench)) -> anyhow::R
     let secret_file = cache.with_extension("secret");
     let outcome = write_secret(opts.secret, &secret_file).and_then(|secret| {
         let secret = secret.as_ref().map(|s| (secret_file.as_path(), s.as_slice()));
-        opts.connections.iter().try_for_each(|&connections| {
-            measure(&exe, &cache, secret, connections, opts).map(|r| emit(&r))
+        opts.resolutions.iter().try_for_each(|&resolution| {
+            opts.connections.iter().try_for_each(|&connections| {
+                measure(&exe, &cache, secret, connections, resolution, opts).map(|r| emit(&r))
+            })
         })
     });
     let _ = std::fs::remove_dir_all(&cache);
@@ -115,11 +126,13 @@ fn measure(
     cache: &std::path::Path,
     secret: Option<(&std::path::Path, &[u8])>,
     connections: u32,
+    resolution: Resolution,
     opts: &BenchOptions,
 ) -> anyhow::Result<MasterBench> {
     let mut config = complete_frames_config(SocketAddr::from(([127, 0, 0, 1], 0)), opts.pipeline);
     config.secret = secret.map(|(_, bytes)| bytes.to_vec());
-    let handle = master::start(config, bench_state(), AssetStore::new(), Box::new(CountingSink))
+    let state = SceneState { resolution, ..bench_state() };
+    let handle = master::start(config, state, AssetStore::new(), Box::new(CountingSink))
         .context("starting the master")?;
     let mut joins = (0..HANDSHAKES)
         .map(|i| join::time_join(handle.local_addr(), secret.map(|(_, s)| s), i))
@@ -145,7 +158,10 @@ fn measure(
     let seconds = after.at.duration_since(before.at).as_secs_f64();
     let frames = after.shown - before.shown;
     let jobs = (after.jobs - before.jobs).max(1);
-    let pixels = jobs as f64 * RESOLUTION.pixels() as f64 / SETS as f64;
+    let pixels = jobs as f64 * resolution.pixels() as f64 / SETS as f64;
+    let (bytes_in, bytes_out) =
+        (after.bytes_in - before.bytes_in, after.bytes_out - before.bytes_out);
+    let per_frame = |bytes: u64| if frames > 0 { bytes as f64 / frames as f64 } else { f64::NAN };
     Ok(MasterBench {
         connections,
         frames_per_second: frames as f64 / seconds,
@@ -154,6 +170,8 @@ fn measure(
             as f64
             / pixels,
         bytes_in_per_pixel: (after.bytes_in - before.bytes_in) as f64 / pixels,
+        bytes_in_per_frame: per_frame(bytes_in),
+        bytes_per_frame: per_frame(bytes_in + bytes_out),
         bytes_per_result: ((after.bytes_in - before.bytes_in)
             + (after.bytes_out - before.bytes_out)) as f64
             / jobs as f64,
@@ -166,8 +184,8 @@ fn measure(
         jobs_per_second: jobs as f64 / seconds,
         frames,
         seconds,
-        width: RESOLUTION.width,
-        height: RESOLUTION.height,
+        width: resolution.width,
+        height: resolution.height,
         sets: SETS,
     })
 }

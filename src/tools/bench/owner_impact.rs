@@ -132,6 +132,7 @@ fn start_master(opts: &OwnerImpactOptions) -> anyhow::Result<MasterHandle> {
         pacing: Default::default(),
         display: Default::default(),
         pipeline: master::DEFAULT_PIPELINE,
+        link_mbps: None,
         secret: None,
         announce: Default::default(),
         script: None,

@@ -43,6 +43,7 @@ impl ProtocolState {
                 frame: job.frame,
                 set: job.set,
                 state_version: version,
+                spp: job.spp,
             }));
         }
         drop(held);

@@ -60,7 +60,7 @@ fn job(frame: FrameNo, set: SetNo, version: StateVersion) -> Job {
     let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 40.0);
     let state =
         SceneState { version, ..SceneState::empty(Resolution { width: 8, height: 4 }, camera) };
-    Job { frame, set, state: Arc::new(state) }
+    Job { frame, set, state: Arc::new(state), spp: 3 }
 }
 
 fn answer(
@@ -197,13 +197,13 @@ fn a_state_version_is_sent_once_before_the_first_job_that_names_it() {
         .iter()
         .map(|a| match a {
             Action::Send(MasterMsg::State(st)) => format!("state {}", st.version),
-            Action::Send(MasterMsg::Job { frame, set, state_version }) => {
-                format!("job {frame}/{set}@{state_version}")
+            Action::Send(MasterMsg::Job { frame, set, state_version, spp }) => {
+                format!("job {frame}/{set}@{state_version}x{spp}")
             }
             other => panic!("{other:?}"),
         })
         .collect();
-    assert_eq!(names, ["state 1", "job 0/0@1", "job 0/1@1", "state 2", "job 1/0@2"]);
+    assert_eq!(names, ["state 1", "job 0/0@1x3", "job 0/1@1x3", "state 2", "job 1/0@2x3"]);
 }
 
 #[test]

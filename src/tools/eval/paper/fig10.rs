@@ -1,9 +1,11 @@
 //! Figure 10: speed-up and parallel efficiency against the number of workers.
 //!
-//! Efficiency is useful results per unit of grid capacity: results that reached a shown
-//! frame per second, divided by what `N` modelled cores can render per second
-//! (`N / mean job time`); speed-up is `N ×` efficiency, i.e. against one core rendering
-//! every job. Both are measured twice: on the paper's cores (jobs of about 56 ms) and on
+//! Efficiency is useful work per unit of grid capacity: samples in results that reached a
+//! shown frame per second, divided by what `N` modelled cores can render per second
+//! (`N / mean job time` jobs of the scene's samples per pixel); speed-up is `N ×`
+//! efficiency, i.e. against one core rendering every job. Samples, not results: the
+//! scheduler sizes jobs to the grid (`scheduler::job_size`), so that on fast cores a
+//! result carries more samples per pixel than the scene's. Both are measured twice: on the paper's cores (jobs of about 56 ms) and on
 //! this machine's cores (several times shorter jobs), where the master on two shared cores
 //! must keep up with many more results per second.
 
@@ -59,14 +61,20 @@ pub fn run(ctx: &mut Context, p: &Fig10) -> anyhow::Result<Section> {
                 },
             )?;
             let capacity = f64::from(n) / job;
-            let efficiency = out.used_per_second().unwrap_or(0.0) / capacity;
-            let busy = out.results_returned as f64 / out.seconds / capacity;
+            let base = f64::from(prepared.cost.spp.max(1));
+            let efficiency = out.used_samples_per_second().unwrap_or(0.0) / base / capacity;
+            // Samples per pixel of the measured frames' jobs, weighed by their results.
+            let (back, samples) = out.frames.iter().fold((0.0, 0.0), |(b, s), f| {
+                (b + f64::from(f.jobs_back), s + f64::from(f.jobs_back) * f64::from(f.spp))
+            });
+            let spp = if back > 0.0 { samples / back } else { base };
+            let busy = out.results_returned as f64 * spp / base / out.seconds / capacity;
             eff.push((f64::from(n), efficiency));
             speed.push((f64::from(n), efficiency * f64::from(n)));
             rows.push(json!({
                 "cores": cores, "workers": n, "job_ms": job * 1e3, "efficiency": efficiency,
                 "speed_up": efficiency * f64::from(n), "useful_fraction": out.useful_fraction,
-                "busy": busy,
+                "busy": busy, "spp": spp,
                 "frames_per_second": out.frames_per_second, "mean_q": out.mean_q,
                 "results_used": out.results_used, "dropped_late": out.dropped_late,
                 "seconds": out.seconds,
@@ -112,7 +120,7 @@ pub fn run(ctx: &mut Context, p: &Fig10) -> anyhow::Result<Section> {
         .iter()
         .map(|r| {
             format!(
-                "| {} | {} | {:.2} | {:.1} | {:.2} | {:.2} | {:.1} | {:.2} |",
+                "| {} | {} | {:.2} | {:.1} | {:.2} | {:.2} | {:.1} | {:.2} | {:.1} |",
                 r["cores"].as_str().unwrap_or(""),
                 r["workers"],
                 r["efficiency"].as_f64().unwrap_or(0.0),
@@ -121,6 +129,7 @@ pub fn run(ctx: &mut Context, p: &Fig10) -> anyhow::Result<Section> {
                 r["useful_fraction"].as_f64().unwrap_or(0.0),
                 r["frames_per_second"].as_f64().unwrap_or(0.0),
                 r["mean_q"].as_f64().unwrap_or(0.0),
+                r["spp"].as_f64().unwrap_or(0.0),
             )
         })
         .collect::<Vec<_>>()
@@ -144,10 +153,12 @@ pub fn run(ctx: &mut Context, p: &Fig10) -> anyhow::Result<Section> {
              results used are counted over whole frames, from one shown frame to another. The \
              master, its scheduler and the TCP connections are real, all on this 2-core machine \
              together with the simulated workers.\n\n\
-             | cores | workers | efficiency | speed-up | busy | useful fraction | fps | mean Q_t |\n\
-             |---|---|---|---|---|---|---|---|\n{table}\n\n\
-             *busy*: results returned per second ÷ capacity (the share of the grid's time spent \
-             rendering); efficiency = busy × useful fraction (results used ÷ returned).\n\n\
+             | cores | workers | efficiency | speed-up | busy | useful fraction | fps | mean Q_t | spp |\n\
+             |---|---|---|---|---|---|---|---|---|\n{table}\n\n\
+             *busy*: samples returned per second ÷ capacity (the share of the grid's time spent \
+             rendering); efficiency = busy × useful fraction (results used ÷ returned); *spp*: \
+             samples per pixel of a job, as the scheduler sized them to the grid (the scene's 4 \
+             while the master keeps up).\n\n\
              On the paper's cores the efficiency {}; on this machine's cores it {}.",
             p.seconds,
             falls("Paper"),

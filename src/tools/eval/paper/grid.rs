@@ -197,6 +197,8 @@ pub struct FrameRecord {
     pub current: bool,
     /// Results of this frame that came back in time (its Q_t × S).
     pub jobs_back: u32,
+    /// Samples per pixel of each of them (the scheduler sizes jobs to the grid).
+    pub spp: u32,
     /// FLIP to the gold standard, when one was given.
     pub flip: Option<f64>,
     /// HDR-FLIP of the linear image to the gold standard, for some of those frames
@@ -410,10 +412,21 @@ impl Outcome {
     /// A window that cut a frame would count all or none of its results (a quarter of
     /// the rate with one worker and four frames in the window).
     pub fn used_per_second(&self) -> Option<f64> {
+        self.per_second_over_whole_frames(|f| f64::from(f.jobs_back))
+    }
+
+    /// As [`Outcome::used_per_second`], each result weighed by its samples per pixel:
+    /// samples per pixel of a set used per second, whatever size the scheduler gave jobs.
+    pub fn used_samples_per_second(&self) -> Option<f64> {
+        self.per_second_over_whole_frames(|f| f64::from(f.jobs_back) * f64::from(f.spp))
+    }
+
+    /// `count` of the measured frames after the first, over the time from the first
+    /// one's display to the last one's.
+    fn per_second_over_whole_frames(&self, count: impl Fn(&FrameRecord) -> f64) -> Option<f64> {
         let (first, last) = (self.frames.first()?, self.frames.last()?);
         let span = last.t - first.t;
-        (span > 0.0)
-            .then(|| self.frames[1..].iter().map(|f| f64::from(f.jobs_back)).sum::<f64>() / span)
+        (span > 0.0).then(|| self.frames[1..].iter().map(count).sum::<f64>() / span)
     }
 }
 
@@ -520,6 +533,7 @@ impl FrameSink for RecordingSink {
             version,
             current,
             jobs_back: s.jobs_back,
+            spp: s.spp,
             flip: None,
             hdr_flip: None,
         });
