@@ -95,7 +95,7 @@ fn a_moved_object_takes_its_history_along_and_leaves_disocclusions_empty() {
     let (assets, a) = cornell();
     let mut b = a.clone();
     b.version = a.version + 1;
-    let moved = b.objects.iter().position(|o| o.name.contains("short")).expect("a box");
+    let moved = b.objects.iter().position(|o| o.name == "small-box").expect("a box");
     b.objects[moved].transform.translation += Vec3::new(0.15, 0.0, 0.0);
     let (ga, gb) = (gbuffer(&assets, &a), gbuffer(&assets, &b));
     let mut r = SvgfReconstructor::new(W, H, svgf_params()).expect("valid");
@@ -129,7 +129,8 @@ fn an_edit_of_the_lighting_caps_the_history() {
     run(&mut r, &a, &g, &by_object(&g), 1..11, true);
     run(&mut r, &b, &g, &by_object(&g), 11..12, false);
     let most = history(&r).iter().map(|h| h.1).fold(0.0, f32::max);
-    assert_eq!(most, svgf_params().svgf.edit_samples);
+    let cap = svgf_params().svgf.edit_samples;
+    assert!((most - cap).abs() < 1e-4, "the most samples kept is {most}, the cap {cap}");
 }
 
 #[test]
@@ -137,9 +138,11 @@ fn a_resting_view_converges_to_each_pixels_mean() {
     let (assets, a) = cornell();
     let g = gbuffer(&assets, &a);
     let mut r = SvgfReconstructor::new(W, H, svgf_params()).expect("valid");
-    let (mut sum, frames) = (vec![Vec3::ZERO; g.len()], 200u64);
-    let mut out = None;
-    for frame in 1..=frames {
+    let mut sum = vec![Vec3::ZERO; g.len()];
+    let surface: Vec<usize> = (0..g.len()).filter(|&i| g.object[i] != NO_OBJECT).collect();
+    // (mean, largest) relative distance of the filtered pixels from their sample means.
+    let mut errors = Vec::new();
+    for frame in 1..=200u64 {
         // Noise of ±50 % around a pattern with sharp steps within surfaces.
         let radiance: Vec<Vec3> = (0..g.len())
             .map(|i| {
@@ -161,15 +164,24 @@ fn a_resting_view_converges_to_each_pixels_mean() {
             gbuffer: &g,
             scene: Some(&a),
         };
-        out = Some(r.reconstruct(&inputs).expect("a frame"));
+        let out = r.reconstruct(&inputs).expect("a frame");
+        if frame == 20 || frame == 200 {
+            let e: Vec<f32> = surface
+                .iter()
+                .map(|&i| {
+                    let mean = sum[i] / frame as f32;
+                    ((out.radiance[i] - mean) / mean).abs().max_element()
+                })
+                .collect();
+            errors.push((
+                e.iter().sum::<f32>() / e.len() as f32,
+                e.iter().copied().fold(0.0, f32::max),
+            ));
+        }
     }
-    let out = out.expect("frames");
-    let mut worst = 0.0f32;
-    for i in (0..g.len()).filter(|&i| g.object[i] != NO_OBJECT) {
-        let mean = sum[i] / frames as f32;
-        worst = worst.max(((out.radiance[i] - mean) / mean).abs().max_element());
-    }
-    assert!(worst < 0.02, "the filtered pixel is {worst} away from its mean");
+    let [(mean20, _), (mean200, max200)] = errors[..] else { panic!("two measurements") };
+    assert!(mean200 < 0.5 * mean20, "the distance falls as samples accumulate: {errors:?}");
+    assert!(mean200 < 0.01 && max200 < 0.05, "{errors:?}");
 }
 
 #[test]

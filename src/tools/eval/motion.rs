@@ -318,3 +318,22 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn svgf_keeps_the_rested_samples_through_an_orbit_and_beats_the_papers_filter() {
+        let (assets, state) = crate::render::testscenes::cornell_box(96, 72);
+        let script = Script { orbit_views: 3, gold_spp: 32, ..Script::full() };
+        let r = run(assets, &state, &script, &[Method::Paper, Method::Svgf]).expect("a run");
+        let (paper, svgf) = (&r[0], &r[1]);
+        eprintln!("{paper:?}\n{svgf:?}");
+        assert_eq!((paper.method, svgf.method), ("paper", "svgf"));
+        assert_eq!(svgf.orbit_flip.len(), 3);
+        assert!(svgf.first_frame_flip < paper.first_frame_flip, "{svgf:?} against {paper:?}");
+        assert!(svgf.orbit_mean_flip < paper.orbit_mean_flip, "{svgf:?} against {paper:?}");
+        assert!(svgf.stability < paper.stability, "{svgf:?} against {paper:?}");
+    }
+}
