@@ -70,6 +70,7 @@ fn inputs(f: &Frame) -> FrameInputs<'_> {
         radiance: &f.radiance,
         mask: &f.mask,
         gbuffer: &f.gbuffer,
+        scene: None,
     }
 }
 

@@ -16,10 +16,12 @@ use super::eval_paper::Experiment;
 use super::GlobalArgs;
 use crate::actors::state::Resolution;
 use crate::image_io;
-use crate::reconstruct::ReconstructParams;
+use crate::reconstruct::{Method, ReconstructParams};
 use crate::render::testscenes;
-use crate::scene::{self, AssetSearchPath};
-use crate::tools::eval::{loss, sequence, FrameSource, RenderSource, SyntheticSource};
+use crate::scene::{self, AssetSearchPath, SceneSource};
+use crate::tools::eval::motion::Script;
+use crate::tools::eval::{loss, motion as motion_eval, sequence};
+use crate::tools::eval::{FrameSource, RenderSource, SyntheticSource};
 
 /// The evaluations.
 #[derive(Debug, clap::Subcommand)]
@@ -42,6 +44,35 @@ pub enum EvalCommand {
     Fig10(super::eval_paper::Fig10Args),
     /// Beyond the paper: the runs across 100 Mbit/s and 1 Gbit/s links (root).
     Lan(super::eval_paper::LanArgs),
+    /// Issue 41: paper vs SVGF reconstruction through an orbit and edits, against
+    /// converged images of each view (FLIP per frame, stability, milliseconds).
+    Motion(MotionArgs),
+}
+
+/// Arguments of `gridlight eval motion`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct MotionArgs {
+    /// Scenes (built-in names, `scenes/NAME.toml` or files); those whose assets are
+    /// missing are skipped with a note.
+    #[arg(long, value_delimiter = ',', default_values_t = vec!["cornell-box".to_string(), "bunny".to_string(), "sponza".to_string()])]
+    pub scenes: Vec<String>,
+    /// Methods compared.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![Method::Paper, Method::Svgf])]
+    pub methods: Vec<Method>,
+    /// Reduced script (6 orbit views, 64-spp references, 320×240): minutes on 2 cores.
+    #[arg(long)]
+    pub quick: bool,
+    /// Image size (default 640×480, or 320×240 with --quick).
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Samples per pixel of the references (default 512, or 64 with --quick).
+    #[arg(long)]
+    pub gold_spp: Option<u32>,
+    /// One JSON line per scene and method (otherwise a short text summary).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `gridlight eval reconstruction`.
@@ -96,6 +127,7 @@ pub fn run(cmd: EvalCommand, global: &GlobalArgs) -> anyhow::Result<()> {
         EvalCommand::Fig9(a) => super::eval_paper::run(Experiment::Fig9(a), global),
         EvalCommand::Fig10(a) => super::eval_paper::run(Experiment::Fig10(a), global),
         EvalCommand::Lan(a) => super::eval_paper::run(Experiment::Lan(a), global),
+        EvalCommand::Motion(a) => motion(a, global),
     }
 }
 
@@ -203,6 +235,53 @@ fn reconstruction(args: ReconstructionArgs, global: &GlobalArgs) -> anyhow::Resu
                 "{}",
                 json!({ "experiment": "convergence", "scene": scene, "loss": loss_level, "metric": "flip", "point": p })
             );
+        }
+    }
+    Ok(())
+}
+
+fn motion(args: MotionArgs, global: &GlobalArgs) -> anyhow::Result<()> {
+    let mut script = if args.quick { Script::quick() } else { Script::full() };
+    if let Some(spp) = args.gold_spp {
+        script.gold_spp = spp;
+    }
+    let (w, h) = if args.quick { (320, 240) } else { (640, 480) };
+    let res = Resolution { width: args.width.unwrap_or(w), height: args.height.unwrap_or(h) };
+    for name in &args.scenes {
+        let source = SceneSource::find(std::path::Path::new(name), &[scenes_dir()])
+            .with_context(|| format!("finding scene `{name}`"))?;
+        let search = source.search_path(&global.assets);
+        let loaded = match scene::load_source(&source, &search) {
+            Ok(loaded) => loaded,
+            Err(err) if err.to_string().contains("not found") => {
+                eprintln!("eval motion: skipping `{name}`: {err}");
+                continue;
+            }
+            Err(err) => return Err(err).with_context(|| format!("loading scene `{name}`")),
+        };
+        let mut state = loaded.state;
+        state.resolution = res;
+        let results = motion_eval::run(Arc::new(loaded.assets), &state, &script, &args.methods)?;
+        for r in results {
+            if args.json {
+                println!(
+                    "{}",
+                    json!({
+                        "scene": name, "method": r.method,
+                        "first_frame_flip": r.first_frame_flip,
+                        "orbit_mean_flip": r.orbit_mean_flip, "stability": r.stability,
+                        "cpu_ms": r.cpu_ms, "material_edit_flip": r.material_edit_flip,
+                        "light_edit_flip": r.light_edit_flip, "orbit_flip": r.orbit_flip,
+                        "width": res.width, "height": res.height, "script": script,
+                    })
+                );
+            } else {
+                println!(
+                    "{name} {}: first frame FLIP {:.4}, orbit mean {:.4}, material edit {:.4}, light edit {:.4}, stability {:.4}, {:.1} ms/frame",
+                    r.method, r.first_frame_flip, r.orbit_mean_flip, r.material_edit_flip,
+                    r.light_edit_flip, r.stability, r.cpu_ms
+                );
+            }
         }
     }
     Ok(())

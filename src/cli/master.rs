@@ -91,6 +91,10 @@ pub struct DisplayArgs {
     /// Reconstruction on the GPU, the CPU, or the GPU when an adapter exists.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub reconstruct: Backend,
+    /// The reconstruction: the paper's filter, or reprojected history with variance-guided
+    /// à-trous filtering (svgf, CPU only).
+    #[arg(long, value_enum)]
+    pub reconstruction: Option<crate::reconstruct::Method>,
     /// Discontinuity threshold α on the cosine between normals.
     #[arg(long)]
     pub alpha: Option<f32>,
@@ -131,6 +135,8 @@ impl DisplayArgs {
             sigma: self.sigma.unwrap_or(base.sigma),
             history: self.history.unwrap_or(base.history),
             exposure: self.exposure.unwrap_or(base.exposure),
+            method: self.reconstruction.unwrap_or(base.method),
+            svgf: base.svgf,
         }
     }
 }

@@ -217,6 +217,7 @@ impl Composer {
             radiance: &self.demodulated,
             mask: &frame.current_mask,
             gbuffer: &g,
+            scene: Some(&frame.state),
         };
         let out = match &self.display_device {
             Some(device) => reconstructor.reconstruct_for_display(&inputs, device)?,

@@ -168,6 +168,7 @@ mod tests {
             radiance: &radiance,
             mask: &masks[frame as usize],
             gbuffer: &g,
+            scene: None,
         };
         let params = ReconstructParams::default();
         let (mut into, mut fresh) = (CpuReconstructor::new(w, h, params).expect("valid"), None);

@@ -19,7 +19,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use gridlight_actors::protocol::FrameNo;
-use gridlight_actors::state::StateVersion;
+use gridlight_actors::state::{SceneState, StateVersion};
 use rayon::prelude::*;
 
 pub mod cpu;
@@ -32,6 +32,7 @@ pub mod params;
 pub mod pass;
 pub mod planes;
 pub mod rows;
+pub mod svgf;
 pub mod synthetic;
 pub mod tonemap;
 
@@ -39,6 +40,7 @@ pub use cpu::CpuReconstructor;
 pub use device_image::DeviceImage;
 pub use gpu::GpuReconstructor;
 pub use params::ReconstructParams;
+pub use svgf::{Method, SvgfReconstructor};
 
 use crate::gbuffer::{GBuffer, GBufferError};
 use crate::gpu::{Backend, GpuContext, GpuError};
@@ -73,6 +75,9 @@ pub struct FrameInputs<'a> {
     /// Whether this frame has a result for the pixel.
     pub mask: &'a [bool],
     pub gbuffer: &'a GBuffer,
+    /// The frame's scene state, when the caller knows it: SVGF reprojects its history
+    /// through the camera and object motion between states (without it, nothing moved).
+    pub scene: Option<&'a SceneState>,
 }
 
 impl FrameInputs<'_> {
@@ -143,6 +148,8 @@ pub struct Reconstructed {
 pub enum Reconstructor {
     Cpu(CpuReconstructor),
     Gpu(Box<GpuReconstructor>),
+    /// SVGF (`params.method`), on the CPU.
+    Svgf(Box<SvgfReconstructor>),
 }
 
 /// A reconstructed frame as [`Reconstructor::reconstruct_for_display`] gives it.
@@ -176,6 +183,15 @@ impl Reconstructor {
                 Ok(ctx)
             }
         };
+        if params.method == Method::Svgf {
+            if backend == Backend::Gpu {
+                return Err(ReconstructError::BadParam {
+                    name: "method",
+                    why: "svgf runs on the CPU only: use --reconstruct cpu or auto".into(),
+                });
+            }
+            return Ok(Self::Svgf(Box::new(SvgfReconstructor::new(width, height, params)?)));
+        }
         match (backend, device) {
             (Backend::Cpu, _) => Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?)),
             (Backend::Gpu, Some(ctx)) => gpu(Ok(ctx)),
@@ -198,6 +214,7 @@ impl Reconstructor {
         match self {
             Self::Cpu(r) => r.reconstruct(inputs),
             Self::Gpu(r) => r.reconstruct(inputs),
+            Self::Svgf(r) => r.reconstruct(inputs),
         }
     }
 
@@ -219,7 +236,7 @@ impl Reconstructor {
     /// Frames read back from the GPU so far (none on the CPU).
     pub fn read_backs(&self) -> u64 {
         match self {
-            Self::Cpu(_) => 0,
+            Self::Cpu(_) | Self::Svgf(_) => 0,
             Self::Gpu(r) => r.read_backs(),
         }
     }
@@ -228,6 +245,7 @@ impl Reconstructor {
     pub fn describe(&self) -> String {
         match self {
             Self::Cpu(_) => "cpu".to_string(),
+            Self::Svgf(_) => "cpu (svgf)".to_string(),
             Self::Gpu(r) => r.adapter_name().to_string(),
         }
     }
@@ -252,6 +270,7 @@ mod tests {
                 radiance,
                 mask: &mask,
                 gbuffer: &g,
+                scene: None,
             };
             inputs.validate(w, h)
         };

@@ -5,6 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::svgf::{Method, SvgfParams};
 use super::ReconstructError;
 
 /// Largest fill radius accepted: the window is (2r+1)² pixels per missing pixel.
@@ -34,6 +35,10 @@ pub struct ReconstructParams {
     pub history: u32,
     /// Exposure in stops applied before the filmic tonemap (as `image_io`).
     pub exposure: f32,
+    /// Which reconstruction runs: the paper's filter or SVGF (`reconstruct::svgf`).
+    pub method: Method,
+    /// The SVGF reconstruction's numbers (used when `method` is `svgf`).
+    pub svgf: SvgfParams,
 }
 
 impl Default for ReconstructParams {
@@ -46,6 +51,8 @@ impl Default for ReconstructParams {
             sigma: 1.0,
             history: 4,
             exposure: 0.0,
+            method: Method::Paper,
+            svgf: SvgfParams::default(),
         }
     }
 }
@@ -78,7 +85,7 @@ impl ReconstructParams {
         if !(self.exposure.is_finite() && self.exposure.abs() <= 32.0) {
             return bad("exposure", format!("{} stops is not in [-32, 32]", self.exposure));
         }
-        Ok(())
+        self.svgf.validate()
     }
 
     /// Half-width of the Gaussian window.

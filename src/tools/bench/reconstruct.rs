@@ -112,6 +112,7 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
         radiance: &inp.radiance,
         mask: &inp.masks[k as usize % inp.masks.len()],
         gbuffer: &inp.gbuffer,
+        scene: None,
     };
     let mut report = BenchReport {
         width: s.width,

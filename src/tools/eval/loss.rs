@@ -80,6 +80,7 @@ pub fn reconstruct_once(
         radiance: &frame.radiance,
         mask,
         gbuffer: g,
+        scene: None,
     })?;
     Ok(out.colour)
 }

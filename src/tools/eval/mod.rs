@@ -24,6 +24,7 @@ pub mod flip;
 pub mod hdr_flip;
 pub mod loss;
 pub mod metrics;
+pub mod motion;
 pub mod paper;
 pub mod render_source;
 pub mod sequence;

@@ -68,6 +68,7 @@ pub fn interaction(
             radiance: &data.radiance,
             mask: &mask,
             gbuffer: &data.gbuffer,
+            scene: None,
         };
         let no_loss = data.colour();
         let gold = source.gold(view)?;
@@ -111,6 +112,7 @@ pub fn convergence(
             radiance: &data.radiance,
             mask: &mask,
             gbuffer: &data.gbuffer,
+            scene: None,
         })?;
         points.push(ConvergencePoint {
             frame,
