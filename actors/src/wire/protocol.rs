@@ -119,7 +119,8 @@ pub use crate::scene::asset_store::{AssetEntry, AssetHash};
 /// 8: `WorkerMsg::Superseded` (a held job dropped unrendered for a newer state's job).
 /// 9: with a secret, the encrypted channel (`Handshake` messages, records); results carry
 ///    a tag only on plain connections (`JobResult::tag` is optional), keyed BLAKE3 is gone.
-pub const PROTOCOL_VERSION: u32 = 9;
+/// 10: `Geometry::Gltf` (glTF 2.0 meshes); an older worker cannot decode such a state.
+pub const PROTOCOL_VERSION: u32 = 10;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
