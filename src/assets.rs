@@ -196,9 +196,10 @@ pub struct Assets {
     pub textures: HashMap<String, Arc<Texture>>,
     /// Equirectangular environment maps by asset path (linear RGB radiance).
     pub environments: HashMap<String, Arc<Texture>>,
-    /// The MTL files each OBJ named, by the OBJ's asset path: what the manifest lists
-    /// after it, known from loading so that the master need not parse the OBJ again.
-    pub obj_libraries: HashMap<String, Vec<String>>,
+    /// The files each mesh file named (an OBJ's MTL libraries, a glTF's external buffers
+    /// and images), by the mesh's asset path: what the manifest lists after it, known from
+    /// loading so that the master need not parse the mesh file again.
+    pub mesh_companions: HashMap<String, Vec<String>>,
 }
 
 #[cfg(test)]

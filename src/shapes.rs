@@ -20,7 +20,7 @@ pub fn mesh(geometry: &Geometry) -> Option<Mesh> {
         Geometry::Sphere { subdivisions } => {
             Some(sphere((*subdivisions).min(MAX_SPHERE_SUBDIVISIONS)))
         }
-        Geometry::Obj { .. } => None,
+        Geometry::Obj { .. } | Geometry::Gltf { .. } => None,
     }
 }
 

@@ -481,3 +481,49 @@ transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scal
         "worker processes outlived the demo"
     );
 }
+
+/// A worker with an empty cache renders a glTF scene (`master lit.gltf`: JSON, `.bin` and
+/// a PNG beside it) with no set-up: it fetches the three files by hash through the
+/// manifest and renders the textured, lit quad for real.
+#[test]
+fn a_worker_with_an_empty_cache_fetches_and_renders_a_gltf_scene() {
+    use gridlight::scene::gltf::fixture::{lit_scene, Bin};
+    use sha2::{Digest, Sha256};
+
+    let dir = tempfile::tempdir().unwrap();
+    let scene_dir = dir.path().join("model");
+    std::fs::create_dir_all(&scene_dir).unwrap();
+    let mut f = lit_scene(serde_json::json!({ "name": "orange", "pbrMetallicRoughness": {
+        "baseColorTexture": { "index": 0 }, "metallicFactor": 0.0 } }));
+    let (image, png) = f.png(2, 2, &[[255, 100, 0]; 4], Some("orange.png"));
+    f.texture(image);
+    std::fs::write(scene_dir.join("orange.png"), &png).unwrap();
+    f.write_gltf(&scene_dir, "lit", Bin::File);
+
+    let out = dir.path().join("out");
+    let args = ["--frames", "3", "--resolution", "32x24"];
+    let mut master = Master::start_file(&out, &scene_dir.join("lit.gltf"), "127.0.0.1:0", &args);
+    let cache = dir.path().join("cache");
+    let addr = master.addr.to_string();
+    let w = Proc::spawn(
+        &["worker", "--master", &addr, "--threads", "1", "--name", "g", "--priority", "normal"]
+            .into_iter()
+            .chain(["--cache-dir", cache.to_str().unwrap()])
+            .collect::<Vec<_>>(),
+        &[("RUST_LOG", "info")],
+    );
+    let status = master.proc.wait(PATIENCE).expect("master stops after 3 frames");
+    assert!(status.success(), "master failed: {}", master.proc.stderr());
+    drop(w);
+    for name in ["lit.gltf", "lit.bin", "orange.png"] {
+        let bytes = std::fs::read(scene_dir.join(name)).unwrap();
+        let blob = cache.join("blobs").join(hex::encode(Sha256::digest(&bytes)));
+        assert!(blob.is_file(), "{name} is not in the worker's cache");
+    }
+    // The worker's radiance shows the orange texture under the light.
+    let last = u(master.stats().last().expect("frames shown"), "frame");
+    let path = master.dir.join("frames").join(format!("frame-{last:06}.current.exr"));
+    let img = image::open(path).unwrap().to_rgb32f();
+    let orange = img.pixels().filter(|p| p[0] > 0.05 && p[0] > 3.0 * p[2]).count();
+    assert!(orange > 0, "no orange pixel in the worker's radiance");
+}

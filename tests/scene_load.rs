@@ -153,7 +153,7 @@ fn manifest_lists_obj_mtl_textures_and_envmap_with_hashes() {
     let again = scene::load_assets(&loaded.state, &search_path(&path)).expect("load from state");
     assert_eq!(again.meshes.len(), loaded.assets.meshes.len());
     assert_eq!(again.textures.len(), loaded.assets.textures.len());
-    assert_eq!(again.obj_libraries, loaded.assets.obj_libraries);
+    assert_eq!(again.mesh_companions, loaded.assets.mesh_companions);
 
     let Some(car) = load("envmap-object.toml") else { return };
     let manifest = scene::manifest(&car.state, &search_path(&path)).expect("manifest");

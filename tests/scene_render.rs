@@ -141,3 +141,37 @@ fn image_does_not_depend_on_the_thread_count() {
     assert_eq!(one, three);
     assert!(one.iter().any(|p| p.max_element() > 0.0));
 }
+
+/// `gridlight render model.glb`: the file's camera (4:3 → 640×480 unless `--resolution`),
+/// its point light and its materials; the lit orange quad shows its base colour in front
+/// of the dimmer grey wall.
+#[test]
+fn renders_a_glb_file_directly() {
+    use gridlight::scene::gltf::fixture::lit_scene;
+
+    let dir = tempfile::tempdir().expect("tempdir");
+    let f = lit_scene(serde_json::json!({ "name": "orange", "pbrMetallicRoughness": {
+        "baseColorFactor": [1.0, 0.4, 0.0, 1.0], "metallicFactor": 0.0 } }));
+    let glb = dir.path().join("lit.glb");
+    std::fs::write(&glb, f.glb()).expect("write glb");
+    let out = dir.path().join("lit.png");
+    let run = gridlight(&[
+        "render",
+        glb.to_str().expect("utf-8"),
+        "--spp",
+        "16",
+        "--quiet",
+        "--resolution",
+        "40x30",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let image = image::open(&out).expect("readable image").to_rgb32f();
+    assert_eq!(image.dimensions(), (40, 30));
+    let centre = image.get_pixel(20, 15);
+    let corner = image.get_pixel(1, 1);
+    assert!(centre[0] > 0.3 && centre[0] > 3.0 * centre[2], "not orange: {centre:?}");
+    assert!((corner[0] - corner[2]).abs() < 0.05, "the wall is not grey: {corner:?}");
+    assert!(centre[0] > corner[0], "the lit quad is not brighter: {centre:?} {corner:?}");
+}

@@ -33,6 +33,7 @@ fn light() -> impl Strategy<Value = Light> {
 fn geometry() -> impl Strategy<Value = Geometry> {
     prop_oneof![
         "[a-z/]{1,20}\\.obj".prop_map(|path| Geometry::Obj { path }),
+        "[a-z/]{1,20}\\.glb".prop_map(|path| Geometry::Gltf { path }),
         Just(Geometry::Quad),
         Just(Geometry::Cube),
         (0u32..6).prop_map(|subdivisions| Geometry::Sphere { subdivisions }),

@@ -1,9 +1,9 @@
 //! The build step: a parsed [`SceneFile`] becomes a [`SceneState`] plus its loaded [`Assets`].
 //!
 //! Every value is checked here (finite, in range, names that exist), so that each error can
-//! name the key it came from. OBJ meshes are read once per file; their MTL materials are
-//! appended to the state's materials after the scene's named ones, unless an object
-//! overrides them.
+//! name the key it came from. Mesh files (OBJ, glTF) are read once each; their materials
+//! (MTL or glTF) are appended to the state's materials after the scene's named ones, unless
+//! an object overrides them.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -17,10 +17,11 @@ use gridlight_actors::state::{
 
 use super::description::*;
 use super::error::{AssetError, Problem, SceneError};
+use super::gltf::{is_gltf, Warnings};
 use super::loader::{load_albedo_texture, load_environment};
-use super::obj::read_obj;
+use super::loader::{read_mesh_file, MeshFile};
 use super::search::{check_asset_path, AssetResolver};
-use super::{mtl, LoadedScene};
+use super::LoadedScene;
 use crate::assets::Assets;
 use crate::reconstruct::ReconstructError;
 use crate::shapes;
@@ -38,7 +39,26 @@ pub fn build(
     path: &Path,
     resolver: &dyn AssetResolver,
 ) -> Result<LoadedScene, SceneError> {
-    let mut b = Builder { path, resolver, assets: Assets::default(), materials: Vec::new() };
+    build_with(file, path, resolver, None, Warnings::default())
+}
+
+/// [`build`], with the mesh file `preloaded` (asset path, data) already read and
+/// `warnings` already found (a glTF scene reads its file before it has a description).
+pub(super) fn build_with(
+    file: &SceneFile,
+    path: &Path,
+    resolver: &dyn AssetResolver,
+    preloaded: Option<(String, MeshFile)>,
+    warnings: Warnings,
+) -> Result<LoadedScene, SceneError> {
+    let mut b = Builder {
+        path,
+        resolver,
+        assets: Assets::default(),
+        materials: Vec::new(),
+        preloaded,
+        warnings,
+    };
     let resolution = b.resolution(&file.resolution)?;
     let camera = b.camera(&file.camera)?;
     let render = b.render(&file.render)?;
@@ -90,6 +110,7 @@ pub fn build(
         assets: b.assets,
         reconstruction: file.render.reconstruction,
         display: file.render.display,
+        warnings: b.warnings.into_vec(),
     })
 }
 
@@ -99,6 +120,10 @@ struct Builder<'a> {
     assets: Assets,
     /// The state's materials, each with the key its texture came from.
     materials: Vec<(Material, String)>,
+    /// A mesh file read before the build (see [`build_with`]).
+    preloaded: Option<(String, MeshFile)>,
+    /// What the scene asks that is not rendered, each once.
+    warnings: Warnings,
 }
 
 impl Builder<'_> {
@@ -278,9 +303,10 @@ impl Builder<'_> {
         let transform = self.transform(&o.transform, &format!("{key}.transform"))?;
         let (geometry, materials, default_name) = match (&o.mesh, o.shape) {
             (Some(_), Some(_)) | (None, None) => {
-                return Err(
-                    self.invalid(key, "give exactly one of `mesh` (an OBJ asset) and `shape`")
-                );
+                return Err(self.invalid(
+                    key,
+                    "give exactly one of `mesh` (an OBJ or glTF asset) and `shape`",
+                ));
             }
             (None, Some(shape)) => {
                 if !o.materials.is_empty() {
@@ -327,18 +353,30 @@ impl Builder<'_> {
                         .invalid(format!("{key}.subdivisions"), "only spheres have subdivisions"));
                 }
                 let mesh_key = format!("{key}.mesh");
-                let geometry = Geometry::Obj { path: mesh.clone() };
+                let geometry = if is_gltf(mesh) {
+                    Geometry::Gltf { path: mesh.clone() }
+                } else {
+                    Geometry::Obj { path: mesh.clone() }
+                };
                 if !mtl_ids.contains_key(mesh) {
-                    let data =
-                        read_obj(mesh, self.resolver).map_err(|e| self.asset(&mesh_key, e))?;
+                    let data = match self.preloaded.take_if(|p| p.0 == *mesh) {
+                        Some((_, data)) => data,
+                        None => read_mesh_file(mesh, self.resolver)
+                            .map_err(|e| self.asset(&mesh_key, e))?,
+                    };
                     let mut ids = Vec::with_capacity(data.materials.len());
-                    for m in &data.materials {
-                        let name = format!("{mesh}:{}", m.name);
-                        self.materials.push((mtl::convert(m, mesh, name), mesh_key.clone()));
+                    for m in data.materials {
+                        self.materials.push((m, mesh_key.clone()));
                         ids.push(self.materials.len() as MaterialId - 1);
                     }
                     mtl_ids.insert(mesh.clone(), ids);
-                    self.assets.obj_libraries.insert(mesh.clone(), data.mtl_assets);
+                    for w in data.warnings {
+                        self.warnings.push(format!("{mesh}: {w}"));
+                    }
+                    for (texture_key, texture) in data.textures {
+                        self.assets.textures.insert(texture_key, Arc::new(texture));
+                    }
+                    self.assets.mesh_companions.insert(mesh.clone(), data.companions);
                     self.assets.meshes.insert(geometry.clone(), Arc::new(data.mesh));
                 }
                 let file_ids = &mtl_ids[mesh];
@@ -363,13 +401,13 @@ impl Builder<'_> {
                         .ok_or_else(|| {
                             self.invalid(
                                 k.clone(),
-                                format!("`{mesh}` has no MTL material `{mtl_name}`"),
+                                format!("`{mesh}` has no material `{mtl_name}`"),
                             )
                         })?;
                     slots[slot] = self.named(names, target, k)?;
                 }
-                let stem =
-                    mesh.rsplit('/').next().unwrap_or(mesh).trim_end_matches(".obj").to_owned();
+                let file_name = mesh.rsplit('/').next().unwrap_or(mesh);
+                let stem = file_name.rsplit_once('.').map_or(file_name, |(s, _)| s).to_owned();
                 (geometry, slots, stem)
             }
         };

@@ -4,14 +4,15 @@
 //! Only scenes that need no asset files are built in (their objects are built-in shapes);
 //! the files under `scenes/` stay the source of truth and are embedded as they are.
 //! [`SceneSource`] is how a command-line scene argument becomes scene text: an existing
-//! file, else a built-in scene's name, else `NAME.toml` in a directory of the asset
-//! search path or in `scenes/` ([`scene_dirs`]).
+//! file, else a built-in scene's name, else `NAME.toml` (or `NAME`, e.g. `model.glb`) in a
+//! directory of the asset search path or in `scenes/` ([`scene_dirs`]).
 
 use std::borrow::Cow;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 use super::error::{Problem, SceneError};
+use super::gltf::is_gltf;
 use super::search::AssetSearchPath;
 
 /// One scene compiled into the binary.
@@ -94,9 +95,24 @@ impl SceneSource {
         Ok((source, search))
     }
 
-    /// The asset search path for this scene (a file's folder is part of it).
+    /// The asset search path for this scene (a file's folder is part of it; a glTF
+    /// file's own folder comes first, since the file is its own first asset).
     pub fn search_path(&self, cli_assets: &[PathBuf]) -> AssetSearchPath {
-        AssetSearchPath::from_env(cli_assets, self.file())
+        let search = AssetSearchPath::from_env(cli_assets, self.file());
+        match (self.gltf_asset(), self.file().and_then(Path::parent)) {
+            (Some(_), Some(dir)) => {
+                let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+                search.with_first(dir.to_path_buf())
+            }
+            _ => search,
+        }
+    }
+
+    /// For a glTF file (`.gltf`, `.glb`), its asset path: its file name, found in its
+    /// folder through [`SceneSource::search_path`].
+    pub fn gltf_asset(&self) -> Option<String> {
+        let name = self.file()?.file_name()?.to_str()?;
+        is_gltf(name).then(|| name.to_owned())
     }
 
     /// The default scene of the demo.
@@ -155,14 +171,19 @@ pub fn scene_dirs(cli_assets: &[PathBuf]) -> Vec<PathBuf> {
     dirs
 }
 
-/// Scene files (`*.toml`) directly inside each of `dirs`, sorted, each once.
+/// Scene files (`*.toml`, `*.gltf`, `*.glb`) directly inside each of `dirs`, sorted,
+/// each once.
 pub fn scene_files_in(dirs: &[PathBuf]) -> Vec<PathBuf> {
     let mut found = Vec::new();
     for dir in dirs {
         let Ok(entries) = std::fs::read_dir(dir) else { continue };
         let mut files: Vec<PathBuf> = entries
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "toml") && p.is_file())
+            .filter(|p| {
+                let scene =
+                    p.extension().is_some_and(|e| e == "toml") || p.to_str().is_some_and(is_gltf);
+                scene && p.is_file()
+            })
             .collect();
         files.sort();
         for f in files {

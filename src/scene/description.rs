@@ -15,7 +15,7 @@
 //! base_color = [0.8, 0.8, 0.8]
 //!
 //! [[objects]]
-//! shape = "cube"            # or: mesh = "bunny/stanford-bunny.obj"
+//! shape = "cube"            # or: mesh = "bunny/stanford-bunny.obj" (or a .gltf/.glb)
 //! material = "white"
 //! transform = { translation = [0, -0.7, 0], rotation = [0, -17, 0], scale = 0.6 }
 //! ```
@@ -210,7 +210,8 @@ pub const DEFAULT_SPHERE_SUBDIVISIONS: u32 = 4;
 pub struct ObjectDesc {
     /// Unique name; defaults to the mesh's file stem or the shape, plus the index.
     pub name: Option<String>,
-    /// Asset path of a Wavefront OBJ (with its MTL). Exactly one of `mesh` and `shape`.
+    /// Asset path of a Wavefront OBJ (with its MTL) or a glTF 2.0 file (`.gltf`, `.glb`:
+    /// its default scene, node transforms applied). Exactly one of `mesh` and `shape`.
     pub mesh: Option<String>,
     pub shape: Option<ShapeDesc>,
     /// Icosphere subdivisions (`shape = "sphere"` only).
@@ -219,7 +220,7 @@ pub struct ObjectDesc {
     pub transform: TransformDesc,
     /// Named material for every slot (built-in shapes need one unless the default grey does).
     pub material: Option<String>,
-    /// Overrides per MTL material name: `{ "leaf" = "my_leaf" }`.
+    /// Overrides per MTL or glTF material name: `{ "leaf" = "my_leaf" }`.
     #[serde(default)]
     pub materials: BTreeMap<String, String>,
     #[serde(default = "default_true")]

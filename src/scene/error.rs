@@ -45,13 +45,15 @@ pub enum AssetError {
     Obj { file: PathBuf, source: tobj::LoadError },
     #[error("cannot load material library `{mtl}` of `{}`: {source}", file.display())]
     Mtl { file: PathBuf, mtl: String, source: Box<AssetError> },
+    #[error("cannot load glTF `{}`: {source}", file.display())]
+    Gltf { file: PathBuf, source: super::gltf::GltfError },
     #[error("OBJ `{}` has no triangles", file.display())]
     EmptyMesh { file: PathBuf },
     #[error("OBJ `{}` is malformed: {reason}", file.display())]
     BadMesh { file: PathBuf, reason: String },
     #[error("cannot decode image `{}`: {source}", file.display())]
     Image { file: PathBuf, source: image::ImageError },
-    #[error("OBJ `{0}` is in the scene state but was not loaded with it")]
+    #[error("mesh `{0}` is in the scene state but was not loaded with it")]
     NotLoaded(String),
 }
 

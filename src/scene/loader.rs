@@ -7,13 +7,64 @@
 use std::sync::Arc;
 
 use glam::Vec3;
-use gridlight_actors::state::{Geometry, SceneState};
+use gridlight_actors::state::{Geometry, Material, SceneState};
 
 use super::error::AssetError;
+use super::gltf::{is_gltf, read_gltf, GltfData};
+use super::mtl;
 use super::obj::read_obj;
 use super::search::AssetResolver;
 use crate::assets::{Assets, Mesh, Texture};
 use crate::shapes;
+
+/// A mesh file read: an OBJ with its MTL materials, or a glTF file.
+#[derive(Debug, Clone)]
+pub struct MeshFile {
+    pub mesh: Mesh,
+    /// The file's materials in slot order (the last slot, "no material", is not listed),
+    /// each named `MESH:NAME`.
+    pub materials: Vec<Material>,
+    /// Asset paths of the files it named and that were read (MTL, buffers, images).
+    pub companions: Vec<String>,
+    /// Albedo textures the file decoded itself (a glTF's), by texture key.
+    pub textures: Vec<(String, Texture)>,
+    /// What the file asks that is not rendered, one line per feature.
+    pub warnings: Vec<String>,
+}
+
+/// Reads the OBJ or glTF file at asset path `asset` (by its extension).
+pub fn read_mesh_file(asset: &str, resolver: &dyn AssetResolver) -> Result<MeshFile, AssetError> {
+    if is_gltf(asset) {
+        return Ok(gltf_mesh_file(asset, read_gltf(asset, resolver)?));
+    }
+    let data = read_obj(asset, resolver)?;
+    Ok(MeshFile {
+        mesh: data.mesh,
+        materials: data
+            .materials
+            .iter()
+            .map(|m| mtl::convert(m, asset, format!("{asset}:{}", m.name)))
+            .collect(),
+        companions: data.mtl_assets,
+        textures: Vec::new(),
+        warnings: Vec::new(),
+    })
+}
+
+/// The mesh file of the glTF file at asset path `asset`, read as `data`.
+pub fn gltf_mesh_file(asset: &str, data: GltfData) -> MeshFile {
+    MeshFile {
+        mesh: data.mesh,
+        materials: data
+            .materials
+            .into_iter()
+            .map(|m| Material { name: format!("{asset}:{}", m.name), ..m.material })
+            .collect(),
+        companions: data.companions,
+        textures: data.textures,
+        warnings: data.warnings.into_vec(),
+    }
+}
 
 /// Every asset `state` refers to. A worker calls this with its cache as the resolver.
 pub fn load_assets(state: &SceneState, resolver: &dyn AssetResolver) -> Result<Assets, AssetError> {
@@ -23,10 +74,13 @@ pub fn load_assets(state: &SceneState, resolver: &dyn AssetResolver) -> Result<A
             continue;
         }
         let mesh = match &object.geometry {
-            Geometry::Obj { path } => {
-                let data = read_obj(path, resolver)?;
-                assets.obj_libraries.insert(path.clone(), data.mtl_assets);
-                data.mesh
+            Geometry::Obj { path } | Geometry::Gltf { path } => {
+                let file = read_mesh_file(path, resolver)?;
+                assets.mesh_companions.insert(path.clone(), file.companions);
+                for (key, texture) in file.textures {
+                    assets.textures.insert(key, Arc::new(texture));
+                }
+                file.mesh
             }
             builtin => load_mesh(builtin, resolver)?,
         };
@@ -47,11 +101,13 @@ pub fn load_assets(state: &SceneState, resolver: &dyn AssetResolver) -> Result<A
     Ok(assets)
 }
 
-/// The mesh of one geometry: a built-in shape or an OBJ file.
+/// The mesh of one geometry: a built-in shape, an OBJ or a glTF file.
 pub fn load_mesh(geometry: &Geometry, resolver: &dyn AssetResolver) -> Result<Mesh, AssetError> {
     match geometry {
-        Geometry::Obj { path } => Ok(read_obj(path, resolver)?.mesh),
-        builtin => Ok(shapes::mesh(builtin).expect("every non-OBJ geometry is a built-in shape")),
+        Geometry::Obj { path } | Geometry::Gltf { path } => {
+            Ok(read_mesh_file(path, resolver)?.mesh)
+        }
+        builtin => Ok(shapes::mesh(builtin).expect("every other geometry is a built-in shape")),
     }
 }
 
@@ -60,10 +116,14 @@ pub fn load_albedo_texture(
     asset: &str,
     resolver: &dyn AssetResolver,
 ) -> Result<Texture, AssetError> {
-    let image = resolver.read(asset)?.decode_image()?;
+    Ok(albedo_texture(&resolver.read(asset)?.decode_image()?))
+}
+
+/// A decoded image as an sRGB albedo texture; alpha is dropped.
+pub fn albedo_texture(image: &image::DynamicImage) -> Texture {
     let rgb = image.to_rgb8();
     let codes = rgb.pixels().map(|p| p.0).collect();
-    Ok(Texture::srgb8(rgb.width(), rgb.height(), codes))
+    Texture::srgb8(rgb.width(), rgb.height(), codes)
 }
 
 /// A linear HDR environment map; non-finite or negative texels are set to zero.

@@ -4,6 +4,7 @@
 //! - [`description`]: serde types of the file (STYLE.md item 4: description, then build).
 //! - [`build`]: checks every value and produces a [`SceneState`] and its [`Assets`].
 //! - [`obj`], [`mtl`]: Wavefront OBJ/MTL through tobj, MTL → material heuristics.
+//! - [`gltf`]: glTF 2.0 files, as meshes of a scene file or as whole scenes.
 //! - [`loader`]: assets of a state alone (what a worker does with its cache).
 //! - [`manifest`]: every file a state needs, hashed, for workers to fetch.
 //! - [`search`]: the asset search path and the [`AssetResolver`] trait.
@@ -14,6 +15,7 @@ pub mod build;
 pub mod builtin;
 pub mod description;
 pub mod error;
+pub mod gltf;
 pub mod loader;
 pub mod manifest;
 pub mod mtl;
@@ -43,6 +45,9 @@ pub struct LoadedScene {
     pub reconstruction: crate::reconstruct::ReconstructParams,
     /// `[render.display]`, checked.
     pub display: DisplayDesc,
+    /// What the scene's files ask that gridlight does not render, one line per feature
+    /// (already logged by [`load_source`]).
+    pub warnings: Vec<String>,
 }
 
 /// Reads, parses and builds the scene file at `path`, finding assets through `resolver`.
@@ -50,15 +55,35 @@ pub fn load(path: &Path, resolver: &dyn AssetResolver) -> Result<LoadedScene, Sc
     load_source(&SceneSource::File(path.to_path_buf()), resolver)
 }
 
-/// Reads, parses and builds a scene file or a built-in scene.
+/// Reads, parses and builds a scene file, a glTF file or a built-in scene, and logs the
+/// warnings of what it does not render.
 pub fn load_source(
     source: &SceneSource,
     resolver: &dyn AssetResolver,
 ) -> Result<LoadedScene, SceneError> {
-    let text = source.text()?;
     let label = source.label();
-    let file = parse(&label, &text)?;
-    build::build(&file, &label, resolver)
+    let loaded = match source.gltf_asset() {
+        Some(asset) => load_gltf(&label, &asset, resolver)?,
+        None => build::build(&parse(&label, &source.text()?)?, &label, resolver)?,
+    };
+    for warning in &loaded.warnings {
+        tracing::warn!(scene = %label.display(), "{warning}");
+    }
+    Ok(loaded)
+}
+
+/// A glTF file as a whole scene: its description ([`gltf::view`]), built like a TOML one.
+fn load_gltf(
+    label: &Path,
+    asset: &str,
+    resolver: &dyn AssetResolver,
+) -> Result<LoadedScene, SceneError> {
+    let data = gltf::read_gltf(asset, resolver)
+        .map_err(|e| SceneError::new(label, "(file)", Problem::Asset(e)))?;
+    let mut warnings = gltf::Warnings::default();
+    let file = gltf::view::describe(&data, asset, &mut warnings);
+    let mesh = loader::gltf_mesh_file(asset, data);
+    build::build_with(&file, label, resolver, Some((asset.to_owned(), mesh)), warnings)
 }
 
 /// Parses scene TOML; `path` is only used in error messages.

@@ -144,6 +144,13 @@ impl AssetSearchPath {
         Self::new(cli_dirs, env.as_deref(), scene_file)
     }
 
+    /// This search path with `dir` searched first.
+    pub fn with_first(mut self, dir: PathBuf) -> Self {
+        self.dirs.retain(|d| *d != dir);
+        self.dirs.insert(0, dir);
+        self
+    }
+
     /// The directories, in search order.
     pub fn dirs(&self) -> &[PathBuf] {
         &self.dirs

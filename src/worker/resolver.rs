@@ -20,7 +20,7 @@ pub fn load_assets(view: &CacheView, state: &SceneState) -> Result<Assets, Worke
 /// the renderer when absent, so only files count).
 pub fn assets_cover(assets: &Assets, state: &SceneState) -> bool {
     let meshes = state.objects.iter().all(|o| match &o.geometry {
-        Geometry::Obj { .. } => assets.meshes.contains_key(&o.geometry),
+        Geometry::Obj { .. } | Geometry::Gltf { .. } => assets.meshes.contains_key(&o.geometry),
         _ => true,
     });
     let textures = state

@@ -176,6 +176,12 @@ impl Master {
         std::fs::create_dir_all(dir).unwrap();
         let scene = dir.join("scene.toml");
         std::fs::write(&scene, text).unwrap();
+        Self::start_file(dir, &scene, listen, extra)
+    }
+
+    /// Starts `gridlight master` on the scene file `scene` (TOML or glTF), writing into
+    /// `dir`.
+    pub fn start_file(dir: &Path, scene: &Path, listen: &str, extra: &[&str]) -> Master {
         let out = dir.join("frames");
         let stats = dir.join("stats.jsonl");
         let sets = SETS.to_string();

@@ -109,7 +109,8 @@ pub struct Object {
     pub transform: Transform,
     /// Material of each material slot of the geometry. An OBJ mesh has one slot per
     /// material of its MTL, in the MTL's order, plus a last slot for faces that name
-    /// no material; built-in shapes have one slot.
+    /// no material; a glTF file likewise, one slot per material of the file plus a last
+    /// one for primitives without; built-in shapes have one slot.
     pub materials: Vec<MaterialId>,
     pub visible: bool,
 }
@@ -133,6 +134,9 @@ impl Object {
 pub enum Geometry {
     /// A Wavefront OBJ file (triangulated on load); its MTL and textures are assets too.
     Obj { path: String },
+    /// A glTF 2.0 file (`.gltf` or `.glb`): its default scene's meshes, with the node
+    /// hierarchy's transforms applied, as one mesh; its buffers and images are assets too.
+    Gltf { path: String },
     /// A unit square in the xz-plane centred at the origin, normal +y.
     Quad,
     /// An axis-aligned unit cube centred at the origin.

@@ -124,7 +124,8 @@ pub use crate::scene::asset_store::{AssetEntry, AssetHash};
 ///    a tag only on plain connections (`JobResult::tag` is optional), keyed BLAKE3 is gone.
 /// 10: every `Job` names its samples per pixel (`MasterMsg::Job::spp`): the scheduler sizes
 ///    jobs to the grid, the master's cost per result and its link (`scheduler::job_size`).
-pub const PROTOCOL_VERSION: u32 = 10;
+/// 11: `Geometry::Gltf` (glTF 2.0 meshes); an older worker cannot decode such a state.
+pub const PROTOCOL_VERSION: u32 = 11;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;
