@@ -232,6 +232,13 @@ mod tests {
         let found = SceneSource::find(Path::new("room"), &dirs).unwrap();
         assert_eq!(found, SceneSource::File(dir.path().join("room.toml")));
         assert_eq!(scene_files_in(&dirs), vec![dir.path().join("room.toml")]);
+        // glTF files are scenes too, found by their full name.
+        std::fs::write(dir.path().join("model.glb"), "").unwrap();
+        let found = SceneSource::find(Path::new("model.glb"), &dirs).unwrap();
+        assert_eq!(found.gltf_asset().as_deref(), Some("model.glb"));
+        assert_eq!(found.search_path(&[]).dirs()[0], dir.path());
+        let listed = scene_files_in(&dirs);
+        assert_eq!(listed, vec![dir.path().join("model.glb"), dir.path().join("room.toml")]);
     }
 
     #[test]
