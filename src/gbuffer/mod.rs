@@ -124,13 +124,12 @@ impl GBuffer {
 
     /// The planes cut into bands of `pixels` consecutive pixels, each with its first pixel.
     fn bands(&mut self, pixels: usize) -> Vec<(usize, Band<'_>)> {
-        let mut normal = self.normal.chunks_mut(pixels);
         let mut position = self.position.chunks_mut(pixels);
         let mut albedo = self.albedo.chunks_mut(pixels);
         let mut emission = self.emission.chunks_mut(pixels);
         let mut object = self.object.chunks_mut(pixels);
         let mut bands = Vec::new();
-        while let Some(normal) = normal.next() {
+        for normal in self.normal.chunks_mut(pixels) {
             let band = Band {
                 normal,
                 position: position.next().expect("planes of one length"),
