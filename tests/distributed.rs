@@ -402,7 +402,8 @@ fn processes_mentioning(needle: &str) -> Vec<u32> {
     found
 }
 
-/// Also checks `--resolution`: the frames have the command line's size, not the file's 48×32.
+/// Also checks `--resolution` and `--scale`: the frames have the command line's size (80×48
+/// scaled by 0.5), not the file's 48×32.
 #[test]
 fn the_demo_renders_with_child_worker_processes_and_leaves_none_behind() {
     let dir = tempfile::tempdir().unwrap();
@@ -458,7 +459,9 @@ transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scal
             "--sets",
             "8",
             "--resolution",
-            "40x24",
+            "80x48",
+            "--scale",
+            "0.5",
             "--out",
             out.to_str().unwrap(),
         ],
@@ -473,7 +476,11 @@ transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scal
     for s in &lines {
         let png = out.join(format!("frame-{:06}.png", u(s, "frame")));
         let img = image::open(&png).unwrap_or_else(|e| panic!("{}: {e}", png.display())).to_rgb8();
-        assert_eq!(img.dimensions(), (40, 24), "--resolution 40x24 overrides the file's 48x32");
+        assert_eq!(
+            img.dimensions(),
+            (40, 24),
+            "--resolution 80x48 --scale 0.5 overrides the file's 48x32"
+        );
         assert!(img.pixels().any(|p| p.0 != [0, 0, 0]), "{} is black", png.display());
     }
     assert!(

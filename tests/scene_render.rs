@@ -77,6 +77,55 @@ fn resolution_flag_overrides_the_scene_file() {
     assert_eq!(image.dimensions(), (20, 12));
 }
 
+#[test]
+fn scale_flag_scales_the_file_or_the_resolution_flag() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = small_cornell(dir.path(), 8, 8);
+    let out = dir.path().join("c.png");
+    let cases: [(&[&str], (u32, u32)); 2] =
+        [(&["--scale", "2.5"], (20, 20)), (&["--resolution", "20x12", "--scale", "0.5"], (10, 6))];
+    for (flags, size) in cases {
+        let mut args = vec!["render", scene.to_str().expect("utf-8"), "--spp", "1", "--quiet"];
+        args.extend_from_slice(flags);
+        args.extend(["--out", out.to_str().expect("utf-8")]);
+        let run = gridlight(&args);
+        assert!(run.status.success(), "{flags:?}: {}", String::from_utf8_lossy(&run.stderr));
+        let image = image::open(&out).expect("readable image").to_rgb8();
+        assert_eq!(image.dimensions(), size, "{flags:?}");
+        std::fs::remove_file(&out).expect("output written");
+    }
+}
+
+/// `render`, `master` and `demo` refuse a bad `--scale` before loading anything, and a
+/// scale that makes a side too large once the scene's size is known.
+#[test]
+fn bad_scale_is_a_clear_error_on_every_command() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = small_cornell(dir.path(), 8, 8);
+    let scene = scene.to_str().expect("utf-8");
+    let out = dir.path().join("c.png");
+    let out = out.to_str().expect("utf-8");
+    let cases = [
+        ("0", "`0` is not a scale factor"),
+        ("abc", "`abc` is not a scale factor"),
+        ("4096", "--scale 4096 makes the width 32768 pixels"),
+    ];
+    for (value, expected) in cases {
+        let commands: [&[&str]; 3] = [
+            &["render", scene, "--out", out, "--scale", value],
+            &["master", scene, "--headless", "--scale", value],
+            &["demo", scene, "--headless", "--scale", value],
+        ];
+        for args in commands {
+            let run = gridlight(args);
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            assert!(!run.status.success(), "{args:?} succeeded");
+            assert!(stderr.contains("--scale") && stderr.contains(expected), "{args:?}: {stderr}");
+        }
+    }
+    assert!(!dir.path().join("c.png").exists());
+}
+
 /// `render`, `master` and `demo` refuse a bad `--resolution` before loading anything.
 #[test]
 fn bad_resolution_is_a_clear_error_on_every_command() {

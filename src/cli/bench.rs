@@ -9,11 +9,13 @@ use std::sync::Arc;
 
 use anyhow::Context;
 
+use super::resolution::ResolutionArg;
 use super::GlobalArgs;
 use crate::assets::Assets;
 use crate::render::isa::IsaLevel;
 use crate::render::testscenes;
 use crate::scene::{self, AssetSearchPath};
+use crate::tools::bench::compose::ComposeSettings as ComposeBench;
 use crate::tools::bench::reconstruct::BenchSettings as ReconBench;
 use crate::tools::bench::trace::{bench_scene, TraceReport, TraceSettings};
 use crate::tools::bench::trace_gpu::{bench_scene_gpu, GpuTraceReport};
@@ -40,6 +42,9 @@ pub enum What {
     Waste(super::bench_waste::WasteArgs),
     /// Milliseconds per 640×480 frame of the full reconstruction pipeline, CPU and GPU.
     Reconstruct(ReconstructArgs),
+    /// The master's compose per shown frame (G-buffer, reconstruction, hand-over to the
+    /// display), camera moving and view resting, at each resolution: one JSON line each.
+    Compose(ComposeArgs),
     /// A desk owner's CPU-bound program beside a rendering worker, against alone.
     OwnerImpact(super::bench_owner::OwnerImpactArgs),
     /// The owner's program of `owner-impact`: spin threads and count iterations.
@@ -68,6 +73,30 @@ pub struct ReconstructArgs {
     pub no_gpu: bool,
     #[arg(long)]
     pub no_cpu: bool,
+}
+
+/// Arguments of `gridlight bench compose`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ComposeArgs {
+    /// Print JSON lines (the only format).
+    #[arg(long)]
+    pub json: bool,
+    /// Timed frames per case; the median is reported.
+    #[arg(long, default_value_t = ComposeBench::default().frames)]
+    pub frames: u32,
+    /// Fraction of pixels without a result in each frame.
+    #[arg(long, default_value_t = ComposeBench::default().loss)]
+    pub loss: f32,
+    #[arg(long, default_value_t = 640, conflicts_with = "resolutions")]
+    pub width: u32,
+    #[arg(long, default_value_t = 480, conflicts_with = "resolutions")]
+    pub height: u32,
+    /// Several sizes, one line each (e.g. `640x480,1920x1080,3840x2160`).
+    #[arg(long, value_delimiter = ',')]
+    pub resolutions: Vec<ResolutionArg>,
+    /// Skip the hardware adapter's measurement.
+    #[arg(long)]
+    pub no_gpu: bool,
 }
 
 /// Arguments of `gridlight bench trace`.
@@ -132,12 +161,33 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             println!("{}", serde_json::to_string(&report)?);
             Ok(())
         }
+        What::Compose(args) => compose(args),
         What::Master(args) => super::bench_master::run(args, global),
         What::Lan(args) => super::bench_lan::run(args, global),
         What::OwnerImpact(args) => super::bench_owner::run_owner_impact(args, global),
         What::BusyLoop(args) => super::bench_owner::run_busy_loop(args),
         What::Waste(args) => super::bench_waste::run(args, global),
     }
+}
+
+fn compose(args: ComposeArgs) -> anyhow::Result<()> {
+    let resolutions = if args.resolutions.is_empty() {
+        let size = format!("{}x{}", args.width, args.height);
+        vec![size.parse::<ResolutionArg>().with_context(|| format!("--width/--height {size}"))?]
+    } else {
+        args.resolutions
+    };
+    let settings = ComposeBench {
+        resolutions: resolutions.into_iter().map(|r| r.0).collect(),
+        frames: args.frames,
+        loss: args.loss,
+        gpu: !args.no_gpu,
+        ..ComposeBench::default()
+    };
+    crate::tools::bench::compose::run(&settings, |line| {
+        println!("{}", serde_json::to_string(line)?);
+        Ok(())
+    })
 }
 
 fn trace(args: TraceArgs, global: &GlobalArgs) -> anyhow::Result<()> {

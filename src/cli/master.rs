@@ -8,7 +8,7 @@ use anyhow::bail;
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::supervision::PanicInjection;
 
-use super::resolution::ResolutionArg;
+use super::resolution::{ResolutionArg, ScaleArg};
 use super::GlobalArgs;
 use crate::gpu::Backend;
 use crate::master::headless::HeadlessOptions;
@@ -85,6 +85,10 @@ pub struct DisplayArgs {
     /// Image size, overriding the scene file's `[resolution]` (each side 1..=16384).
     #[arg(long, value_name = "WxH")]
     pub resolution: Option<ResolutionArg>,
+    /// Multiplies the image size (the scene file's, or `--resolution`'s) by F on each side,
+    /// rounded (0.5: a quarter of the pixels).
+    #[arg(long, value_name = "F")]
+    pub scale: Option<ScaleArg>,
     /// The view shown in the window or written as PNG.
     #[arg(long, value_enum, default_value_t = View::Final)]
     pub view: View,

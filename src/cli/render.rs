@@ -16,7 +16,7 @@ use anyhow::{bail, Context};
 use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::resolution::{self, ResolutionArg};
+use super::resolution::{self, ResolutionArg, ScaleArg};
 use super::GlobalArgs;
 use crate::image_io::{self, ClaimedOutput};
 use crate::render::{render_pixels, PixelSample, RenderScene};
@@ -47,6 +47,10 @@ pub struct Args {
     /// Image size, overriding the scene file's `[resolution]` (each side 1..=16384).
     #[arg(long, value_name = "WxH")]
     pub resolution: Option<ResolutionArg>,
+    /// Multiplies the image size (the scene file's, or `--resolution`'s) by F on each side,
+    /// rounded (0.5: a quarter of the pixels).
+    #[arg(long, value_name = "F")]
+    pub scale: Option<ScaleArg>,
     /// Hide the progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -69,7 +73,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
     let loaded = scene::load_source(&source, &search)?;
     let mut state = loaded.state;
     state.render.spp = 1;
-    resolution::apply(&mut state.resolution, args.resolution);
+    resolution::apply(&mut state.resolution, args.resolution, args.scale)?;
     let render_scene = RenderScene::new(Arc::new(loaded.assets), &state)
         .with_context(|| format!("cannot render `{source}`"))?;
     tracing::info!(

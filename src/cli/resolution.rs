@@ -1,7 +1,9 @@
-//! `--resolution WxH`: the image size from the command line, overriding the scene file's
-//! `[resolution]` on `master`, `demo` and `render`. Checked against the same per-side limit
-//! as the file ([`MAX_RESOLUTION`]) so that a size the file may not hold cannot come in
-//! through the command line either.
+//! `--resolution WxH` and `--scale F`: the image size from the command line on `master`,
+//! `demo` and `render`. `--resolution` overrides the scene file's `[resolution]`; `--scale`
+//! then multiplies whichever size that left (each side rounded, at least one pixel), so
+//! that `--scale 0.5` renders a 1920×1080 scene at 960×540 without naming its size. Both
+//! are checked against the same per-side limit as the file ([`MAX_RESOLUTION`]) so that a
+//! size the file may not hold cannot come in through the command line either.
 
 use std::str::FromStr;
 
@@ -10,12 +12,34 @@ use gridlight_actors::state::Resolution;
 use crate::scene::build::MAX_RESOLUTION;
 
 /// Why a `--resolution` value was refused.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ResolutionError {
     #[error("`{0}` is not WIDTHxHEIGHT (for example 1920x1080)")]
     Syntax(String),
     #[error("{side} {value} is not in 1..={MAX_RESOLUTION} pixels")]
     OutOfRange { side: &'static str, value: u64 },
+    #[error("`{0}` is not a scale factor above 0 and at most {MAX_SCALE} (for example 0.5)")]
+    Scale(String),
+    #[error("--scale {scale} makes the {side} {value} pixels, over {MAX_RESOLUTION}")]
+    ScaledOutOfRange { scale: f32, side: &'static str, value: u64 },
+}
+
+/// The largest `--scale`: a 1×1 scene could not grow past the per-side limit anyway.
+pub const MAX_SCALE: f32 = MAX_RESOLUTION as f32;
+
+/// A factor on both sides of the image, `0 < F <= MAX_SCALE`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaleArg(pub f32);
+
+impl FromStr for ScaleArg {
+    type Err = ResolutionError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().parse::<f32>() {
+            Ok(f) if f.is_finite() && f > 0.0 && f <= MAX_SCALE => Ok(Self(f)),
+            _ => Err(ResolutionError::Scale(s.to_owned())),
+        }
+    }
 }
 
 /// An image size given as `WIDTHxHEIGHT` (`x` or `×`, either case).
@@ -48,11 +72,30 @@ fn side(name: &'static str, text: &str) -> Result<u32, Option<ResolutionError>> 
     Ok(value as u32)
 }
 
-/// `resolution` with the command line's override, if any.
-pub fn apply(resolution: &mut Resolution, arg: Option<ResolutionArg>) {
+/// `resolution` with the command line's override, if any, then scaled by `scale`; a
+/// scaled side over the limit is refused.
+pub fn apply(
+    resolution: &mut Resolution,
+    arg: Option<ResolutionArg>,
+    scale: Option<ScaleArg>,
+) -> Result<(), ResolutionError> {
     if let Some(ResolutionArg(r)) = arg {
         *resolution = r;
     }
+    if let Some(ScaleArg(f)) = scale {
+        let scaled = |side: &'static str, value: u32| {
+            let value = (f64::from(value) * f64::from(f)).round().max(1.0) as u64;
+            if value > u64::from(MAX_RESOLUTION) {
+                return Err(ResolutionError::ScaledOutOfRange { scale: f, side, value });
+            }
+            Ok(value as u32)
+        };
+        *resolution = Resolution {
+            width: scaled("width", resolution.width)?,
+            height: scaled("height", resolution.height)?,
+        };
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -69,6 +112,36 @@ mod tests {
         assert_eq!(parse("3840X2160"), Ok((3840, 2160)));
         assert_eq!(parse("640×480"), Ok((640, 480)));
         assert_eq!(parse("16384x1"), Ok((MAX_RESOLUTION, 1)));
+    }
+
+    #[test]
+    fn scale_multiplies_the_size_left_by_resolution() {
+        let base = Resolution { width: 1920, height: 1080 };
+        let run = |arg: Option<&str>, scale: &str| {
+            let mut r = base;
+            let arg = arg.map(|a| a.parse::<ResolutionArg>().expect("size"));
+            apply(&mut r, arg, Some(scale.parse().expect("scale"))).map(|()| (r.width, r.height))
+        };
+        assert_eq!(run(None, "0.5"), Ok((960, 540)));
+        assert_eq!(run(None, "2"), Ok((3840, 2160)));
+        assert_eq!(run(Some("640x480"), "1.5"), Ok((960, 720)));
+        // Rounded to the nearest pixel, never below one.
+        assert_eq!(run(Some("3x3"), "0.5"), Ok((2, 2)));
+        assert_eq!(run(Some("640x480"), "0.0001"), Ok((1, 1)));
+        let mut r = base;
+        apply(&mut r, None, None).expect("no flags");
+        assert_eq!(r, base, "without flags the scene's size stays");
+        let err = run(None, "10").expect_err("19200 is over the limit").to_string();
+        assert!(err.contains("--scale 10") && err.contains("width 19200"), "{err}");
+    }
+
+    #[test]
+    fn bad_scales_are_refused() {
+        for bad in ["0", "-1", "abc", "", "nan", "inf", "16385", "0x2"] {
+            let err = bad.parse::<ScaleArg>().expect_err(bad).to_string();
+            assert!(err.contains("is not a scale factor"), "{bad}: {err}");
+        }
+        assert_eq!("0.25".parse::<ScaleArg>(), Ok(ScaleArg(0.25)));
     }
 
     #[test]

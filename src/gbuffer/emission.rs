@@ -49,7 +49,7 @@ mod tests {
     fn only_pixels_on_an_emitters_edge_change_and_they_take_partial_values() {
         let (assets, state) = testscenes::cornell_box(64, 48);
         let scene = RenderScene::new(Arc::clone(&assets), &state).unwrap();
-        let centre = GBuffer::from_scene(&scene, &assets);
+        let centre = GBuffer::from_scene(&scene, crate::gbuffer::scene_scale(&state, &assets));
         let mut area = centre.clone();
         let n = area_mean_emission(&mut area, &scene);
         assert!(n > 0 && n < area.len() / 10, "{n} pixels resampled");

@@ -27,7 +27,7 @@ use super::raster::{
     draw_buffer, frame_group, frame_layout, pipelines, slot_vertices, texture_group,
     texture_layout, vertex_buffer, DrawUniform, Targets, Vertex, ViewUniform, DRAW_STRIDE,
 };
-use super::{scene_scale, GBuffer, GBufferError, NO_OBJECT};
+use super::{GBuffer, GBufferError, SceneScale, NO_OBJECT};
 use crate::assets::{Assets, Mesh, Texture};
 use crate::gpu::{GpuContext, GpuError};
 use crate::render::RenderScene;
@@ -81,6 +81,7 @@ pub struct GpuGBuffer {
     view: wgpu::Buffer,
     draws: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
+    scale: SceneScale,
     targets: Option<Targets>,
     last_ms: Option<f64>,
 }
@@ -120,6 +121,7 @@ impl GpuGBuffer {
             view,
             draws,
             frame_group,
+            scale: SceneScale::default(),
             targets: None,
             last_ms: None,
             scene,
@@ -173,7 +175,7 @@ impl GpuGBuffer {
         if self.targets.as_ref().map(|t| (t.width, t.height)) != Some((res.width, res.height)) {
             self.targets = Some(Targets::new(&self.ctx.device, res.width, res.height));
         }
-        let scale = scene_scale(state, &self.assets);
+        let scale = self.scale.get(state, &self.assets);
         let (eye, view_proj) = self.scene.camera.raster_view(NEAR * scale);
         let view = ViewUniform {
             view_proj: view_proj.to_cols_array_2d(),

@@ -88,17 +88,58 @@ impl GBuffer {
     }
 
     /// The CPU G-buffer of a scene state: one primary ray through each pixel centre
-    /// (`render::primary_hit`), rows in parallel.
-    pub fn from_scene(scene: &RenderScene, assets: &Assets) -> Self {
+    /// (`render::primary_hit`), with `scene_scale` given (it depends on the objects only:
+    /// [`GBufferSource`] keeps it while only the camera moves).
+    ///
+    /// Bands of rows run on every thread of the pool; each traces runs of a row's pixels
+    /// into a small buffer (one call into the dispatched kernel build) and writes them
+    /// straight into its rows of the planes, which are allocated zeroed and so faulted in
+    /// by the threads that write them.
+    pub fn from_scene(scene: &RenderScene, scene_scale: f32) -> Self {
         let res = scene.state().resolution;
-        // Chunks of rows' worth of pixels, each one call into the dispatched kernel build.
-        const CHUNK: usize = 4096;
-        let mut samples = vec![PixelSample::default(); res.pixels()];
-        samples
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(c, chunk)| primary_hits(scene, (c * CHUNK) as u32, chunk));
-        Self::from_samples(res.width, res.height, &samples, scene_scale(scene.state(), assets))
+        let (w, n) = (res.width as usize, res.pixels());
+        let mut g = Self {
+            width: res.width,
+            height: res.height,
+            normal: bytemuck::zeroed_vec(n),
+            position: bytemuck::zeroed_vec(n),
+            albedo: bytemuck::zeroed_vec(n),
+            emission: bytemuck::zeroed_vec(n),
+            object: bytemuck::zeroed_vec(n),
+            scene_scale,
+        };
+        // About four bands per thread, to share out rows of unequal cost.
+        let rows = res.height as usize;
+        let band = rows.div_ceil(4 * rayon::current_num_threads()).max(1) * w;
+        g.bands(band).into_par_iter().for_each(|(first, mut band)| {
+            let mut hits = [PixelSample::default(); RUN];
+            for start in (0..band.len()).step_by(RUN) {
+                let run = &mut hits[..RUN.min(band.len() - start)];
+                primary_hits(scene, (first + start) as u32, run);
+                band.write(start, run);
+            }
+        });
+        g
+    }
+
+    /// The planes cut into bands of `pixels` consecutive pixels, each with its first pixel.
+    fn bands(&mut self, pixels: usize) -> Vec<(usize, Band<'_>)> {
+        let mut position = self.position.chunks_mut(pixels);
+        let mut albedo = self.albedo.chunks_mut(pixels);
+        let mut emission = self.emission.chunks_mut(pixels);
+        let mut object = self.object.chunks_mut(pixels);
+        let mut bands = Vec::new();
+        for normal in self.normal.chunks_mut(pixels) {
+            let band = Band {
+                normal,
+                position: position.next().expect("planes of one length"),
+                albedo: albedo.next().expect("planes of one length"),
+                emission: emission.next().expect("planes of one length"),
+                object: object.next().expect("planes of one length"),
+            };
+            bands.push((bands.len() * pixels, band));
+        }
+        bands
     }
 
     /// Number of pixels.
@@ -139,6 +180,38 @@ impl GBuffer {
     }
 }
 
+/// Pixels traced per call into the kernel build: a buffer of their samples stays in L1.
+const RUN: usize = 64;
+
+/// Consecutive pixels of every plane, written by one thread.
+struct Band<'a> {
+    normal: &'a mut [Vec3],
+    position: &'a mut [Vec3],
+    albedo: &'a mut [Vec3],
+    emission: &'a mut [Vec3],
+    object: &'a mut [u32],
+}
+
+impl Band<'_> {
+    fn len(&self) -> usize {
+        self.normal.len()
+    }
+
+    /// Writes `samples` into the band's pixels from `start` on.
+    fn write(&mut self, start: usize, samples: &[PixelSample]) {
+        let end = start + samples.len();
+        let planes = self.normal[start..end]
+            .iter_mut()
+            .zip(&mut self.position[start..end])
+            .zip(&mut self.albedo[start..end])
+            .zip(&mut self.emission[start..end])
+            .zip(&mut self.object[start..end]);
+        for (((((n, p), a), e), o), s) in planes.zip(samples) {
+            (*n, *p, *a, *e, *o) = (s.normal, s.position, s.albedo, s.emission, s.object);
+        }
+    }
+}
+
 /// The scene's size for the relative position threshold: half the largest extent of the
 /// world-space bounding box of all visible objects (1 for the classic 2-unit Cornell box).
 /// Falls back to 1 for an empty scene.
@@ -172,6 +245,28 @@ pub fn scene_scale(state: &SceneState, assets: &Assets) -> f32 {
     }
 }
 
+/// [`scene_scale`] kept for the objects it was computed from: it depends on the visible
+/// objects' geometry and transforms only, so a camera move reuses it instead of walking
+/// every vertex again.
+#[derive(Debug, Default)]
+pub struct SceneScale {
+    last: Option<(Vec<gridlight_actors::state::Object>, f32)>,
+}
+
+impl SceneScale {
+    /// `scene_scale(state, assets)`, recomputed only when `state`'s objects changed.
+    pub fn get(&mut self, state: &SceneState, assets: &Assets) -> f32 {
+        match &self.last {
+            Some((objects, scale)) if *objects == state.objects => *scale,
+            _ => {
+                let scale = scene_scale(state, assets);
+                self.last = Some((state.objects.clone(), scale));
+                scale
+            }
+        }
+    }
+}
+
 /// Why a G-buffer could not be computed.
 #[derive(Debug, thiserror::Error)]
 pub enum GBufferError {
@@ -201,6 +296,8 @@ pub struct GBufferSource {
     /// Why `Auto` ended up on the CPU, if it did.
     fallback: Option<String>,
     current: Option<(StateVersion, Arc<GBuffer>)>,
+    /// The CPU path's scene scale.
+    scale: SceneScale,
 }
 
 impl GBufferSource {
@@ -255,7 +352,7 @@ impl GBufferSource {
         if let Some(why) = &fallback {
             tracing::info!(why = %why, "G-buffer on the CPU");
         }
-        Ok(Self { assets, engine, fallback, current: None })
+        Ok(Self { assets, engine, fallback, current: None, scale: SceneScale::default() })
     }
 
     /// Whether G-buffers come from the raster pass.
@@ -307,7 +404,7 @@ impl GBufferSource {
                 if scene.state().version != state.version {
                     scene.set_state(state)?;
                 }
-                GBuffer::from_scene(scene, &self.assets)
+                GBuffer::from_scene(scene, self.scale.get(state, &self.assets))
             }
         };
         let g = Arc::new(g);
@@ -329,5 +426,45 @@ mod tests {
         assert!(err.contains("albedo"), "{err}");
         let err = GBuffer::empty(4, 3, 1.0).validate(5, 3).expect_err("size").to_string();
         assert!(err.contains("4×3"), "{err}");
+    }
+
+    #[test]
+    fn from_scene_is_every_pixels_primary_hit() {
+        // Sizes whose bands and runs end mid-row, a thin lens, and a scene with an
+        // environment (escaping rays' emission).
+        for (w, h, aperture) in [(37, 23, 0.0), (130, 7, 0.05), (5, 40, 0.0)] {
+            let (assets, mut state) = crate::render::testscenes::cornell_box(w, h);
+            state.camera.aperture = aperture;
+            state.environment = Some(gridlight_actors::state::Environment {
+                map: None,
+                color: Vec3::new(0.2, 0.3, 0.4),
+                intensity: 1.0,
+                rotation_deg: 0.0,
+            });
+            let scene = RenderScene::new(assets, &state).unwrap();
+            let g = GBuffer::from_scene(&scene, 1.5);
+            let want: Vec<PixelSample> =
+                (0..w * h).map(|p| crate::render::primary_hit(&scene, p)).collect();
+            let escaped = want.iter().filter(|s| s.object == NO_OBJECT).count();
+            assert!(escaped > 0 && escaped < want.len(), "{escaped} rays escape");
+            assert_eq!(g, GBuffer::from_samples(w, h, &want, 1.5), "{w}×{h}");
+        }
+    }
+
+    #[test]
+    fn the_scene_scale_is_kept_while_only_the_camera_moves() {
+        let (assets, mut state) = crate::render::testscenes::cornell_box(8, 6);
+        let mut scale = SceneScale::default();
+        let first = scale.get(&state, &assets);
+        assert_eq!(first, scene_scale(&state, &assets));
+        state.camera.position.x += 1.0;
+        assert_eq!(scale.get(&state, &assets), first);
+        // Scaling every object doubles the scene's extent.
+        for object in &mut state.objects {
+            object.transform.scale *= 2.0;
+            object.transform.translation *= 2.0;
+        }
+        let doubled = scale.get(&state, &assets);
+        assert!((doubled - 2.0 * first).abs() < 1e-4 * first, "{doubled} against {first}");
     }
 }

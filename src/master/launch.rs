@@ -118,7 +118,8 @@ impl Prepared {
 pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     let search = opts.scene.search_path(&opts.asset_dirs);
     let mut loaded = crate::scene::load_source(&opts.scene, &search)?;
-    crate::cli::resolution::apply(&mut loaded.state.resolution, opts.display.resolution);
+    let size = &mut loaded.state.resolution;
+    crate::cli::resolution::apply(size, opts.display.resolution, opts.display.scale)?;
     // The store hashes each file as it adds it: the only hashing at start.
     let paths = crate::scene::asset_paths(&loaded.state, &loaded.assets)
         .with_context(|| format!("listing the assets of {}", opts.scene))?;

@@ -13,13 +13,39 @@ use super::history::HistoryRing;
 use super::pass::{self, FillInputs, Outputs, PassConsts, PastFrame};
 use super::planes::{GuidePlanes, Layout, Planes3};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
+use gridlight_actors::state::StateVersion;
 
 /// One previous frame kept for the temporal filter.
 #[derive(Debug)]
 struct Past {
     /// Filled radiance.
     radiance: Planes3,
-    guide: GuidePlanes,
+    guide: Guide,
+}
+
+/// G-buffer planes and the scene-state version they were split from: a frame of the same
+/// version has the same normals and positions (its G-buffer goes with its state), so
+/// while the view rests the split is skipped.
+#[derive(Debug)]
+struct Guide {
+    planes: GuidePlanes,
+    version: Option<StateVersion>,
+}
+
+impl Guide {
+    fn new(layout: &Layout) -> Self {
+        Self { planes: GuidePlanes::new(layout), version: None }
+    }
+
+    /// The planes of `inputs`' G-buffer, split unless they already hold its version.
+    fn update(&mut self, inputs: &FrameInputs, layout: &Layout) -> &GuidePlanes {
+        if self.version != Some(inputs.state_version) {
+            let g = inputs.gbuffer;
+            self.planes.split(&g.normal, &g.position, layout);
+            self.version = Some(inputs.state_version);
+        }
+        &self.planes
+    }
 }
 
 /// Reconstructs frames of one size on the CPU, keeping accumulation and history between
@@ -35,7 +61,7 @@ pub struct CpuReconstructor {
     ring: HistoryRing,
     past: Vec<Past>,
     /// This frame's G-buffer.
-    guide: GuidePlanes,
+    guide: Guide,
     fill_inputs: FillInputs,
     filled: Planes3,
     blended: Planes3,
@@ -54,7 +80,7 @@ impl CpuReconstructor {
         let layout = Layout::new(width, height, pad);
         let ring = HistoryRing::new(params.history);
         let past = (0..ring.capacity())
-            .map(|_| Past { radiance: layout.zeroed3(), guide: GuidePlanes::new(&layout) })
+            .map(|_| Past { radiance: layout.zeroed3(), guide: Guide::new(&layout) })
             .collect();
         Ok(Self {
             width,
@@ -64,7 +90,7 @@ impl CpuReconstructor {
             accum: vec![Vec4::ZERO; n],
             ring,
             past,
-            guide: GuidePlanes::new(&layout),
+            guide: Guide::new(&layout),
             fill_inputs: FillInputs::new(&layout),
             filled: layout.zeroed3(),
             blended: layout.zeroed3(),
@@ -104,9 +130,9 @@ impl CpuReconstructor {
         let mode = Mode::of(inputs.accumulated_frames);
         let reset = mode == Mode::Interacting;
 
-        self.guide.split(&g.normal, &g.position, layout);
+        let guide = self.guide.update(inputs, layout);
         pass::accumulate(reset, inputs.radiance, inputs.mask, &mut self.accum, self.width);
-        pass::fill(&self.accum, &self.guide, &c, layout, &mut self.fill_inputs, &mut self.filled);
+        pass::fill(&self.accum, guide, &c, layout, &mut self.fill_inputs, &mut self.filled);
         let result = if mode == Mode::Interacting {
             let weights = self.ring.weights(inputs.frame);
             let past: Vec<PastFrame> = self
@@ -114,10 +140,14 @@ impl CpuReconstructor {
                 .iter()
                 .zip(weights)
                 .filter(|(_, w)| *w > 0.0)
-                .map(|(p, weight)| PastFrame { weight, radiance: &p.radiance, guide: &p.guide })
+                .map(|(p, weight)| PastFrame {
+                    weight,
+                    radiance: &p.radiance,
+                    guide: &p.guide.planes,
+                })
                 .collect();
-            pass::temporal(&self.filled, &self.guide, &past, &c, layout, &mut self.blended);
-            pass::gaussian(&self.blended, &self.guide, &c, layout, &mut self.filtered);
+            pass::temporal(&self.filled, guide, &past, &c, layout, &mut self.blended);
+            pass::gaussian(&self.blended, guide, &c, layout, &mut self.filtered);
             &self.filtered
         } else {
             &self.filled

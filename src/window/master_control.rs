@@ -23,10 +23,10 @@ use winit::event_loop::EventLoopProxy;
 use super::edits::WindowEdit;
 use super::latest::Latest;
 use super::panel::PacingChoice;
-use super::picture::{FrameImage, Picture};
+use super::picture::FrameImage;
 use super::status::{StatusView, WorkerRow};
 use super::{MasterControl, ReadyFrame, UserEvent};
-use crate::master::compose::{Composer, Image, SharedScene};
+use crate::master::compose::{Composer, SharedScene};
 use crate::master::view::View;
 use crate::render;
 
@@ -55,15 +55,8 @@ impl WindowSink {
         let view =
             View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
         let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.into()))?;
-        let image = match c.image {
-            Image::Host { rgba, linear } => FrameImage::Picture {
-                picture: Picture::from_pixels(c.width, c.height, &rgba).ok_or_else(|| {
-                    SinkError::Other("picture size does not match the frame".into())
-                })?,
-                linear: linear.map(Arc::new),
-            },
-            Image::Device(image) => FrameImage::Device(image),
-        };
+        let image = FrameImage::from_composed(c.width, c.height, c.image)
+            .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
         let mut status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
         status.frames_read_back = self.composer.read_backs();
         Ok(ReadyFrame { image, status })

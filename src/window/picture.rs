@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
+use crate::master::compose::Image;
 use crate::reconstruct::DeviceImage;
 
 /// The pixels of one frame, where they are.
@@ -26,6 +27,18 @@ pub enum FrameImage {
 pub type HostFrame = (Picture, Option<Arc<Vec<Vec3>>>);
 
 impl FrameImage {
+    /// A composed frame's pixels as the window takes them (the sink's hand-over): a host
+    /// picture is moved, not copied; `None` when its size does not match its pixels.
+    pub fn from_composed(width: u32, height: u32, image: Image) -> Option<Self> {
+        Some(match image {
+            Image::Host { rgba, linear } => FrameImage::Picture {
+                picture: Picture::from_rgba(width, height, rgba)?,
+                linear: linear.map(Arc::new),
+            },
+            Image::Device(image) => FrameImage::Device(image),
+        })
+    }
+
     /// The picture and linear colour on the CPU, for screenshots: a device image is read
     /// back here (once per screenshot, never per frame).
     pub fn to_host(&self) -> Result<HostFrame, String> {
@@ -59,6 +72,15 @@ impl Picture {
         })
     }
 
+    /// [`Self::from_pixels`] taking the pixels' buffer itself, without a copy.
+    pub fn from_rgba(width: u32, height: u32, pixels: Vec<[u8; 4]>) -> Option<Self> {
+        (pixels.len() == width as usize * height as usize).then(|| Self {
+            width,
+            height,
+            rgba: bytemuck::allocation::cast_vec(pixels),
+        })
+    }
+
     /// The RGBA value of pixel (x, y).
     pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
         let i = (y as usize * self.width as usize + x as usize) * 4;
@@ -75,5 +97,8 @@ mod tests {
         assert!(Picture::from_pixels(3, 1, &[[0; 4]; 2]).is_none());
         let p = Picture::from_pixels(2, 1, &[[1, 2, 3, 4], [5, 6, 7, 8]]).expect("2×1");
         assert_eq!(p.pixel(1, 0), [5, 6, 7, 8]);
+        let moved = Picture::from_rgba(2, 1, vec![[1, 2, 3, 4], [5, 6, 7, 8]]).expect("2×1");
+        assert_eq!(moved, p);
+        assert!(Picture::from_rgba(3, 1, vec![[0; 4]; 2]).is_none());
     }
 }

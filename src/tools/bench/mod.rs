@@ -10,8 +10,10 @@
 //!   worker ([`busy_loop`] is that program).
 //! - [`waste`]: the useful fraction of returned results at each grid size.
 //! - [`reconstruct`]: milliseconds per frame of reconstruction and of the G-buffer.
+//! - [`compose`]: the master's compose per shown frame, stage by stage, moving and resting.
 
 pub mod busy_loop;
+pub mod compose;
 pub mod join;
 pub mod lan;
 pub mod master;

@@ -79,21 +79,42 @@ pub struct BenchReport {
 
 struct Inputs {
     gbuffer: GBuffer,
-    radiance: Vec<Vec3>,
-    masks: Vec<Vec<bool>>,
+    samples: Samples,
+}
+
+/// A frame's worth of noisy radiance over a G-buffer and the masks of the results that
+/// arrived, one per frame in turn (the benchmarks' frames differ only in their mask).
+pub(crate) struct Samples {
+    pub radiance: Vec<Vec3>,
+    pub masks: Vec<Vec<bool>>,
+}
+
+impl Samples {
+    /// Noisy radiance over `gbuffer`'s analytic clean image, with `loss` of the pixels lost.
+    pub fn new(gbuffer: &GBuffer, loss: f32) -> Self {
+        let clean = synthetic::clean_radiance(gbuffer);
+        let radiance = synthetic::noisy_radiance(&clean, 0.8, 1, 1);
+        let masks =
+            (0..4).map(|k| synthetic::random_mask(gbuffer.len(), 1.0 - loss, 3, k)).collect();
+        Self { radiance, masks }
+    }
+
+    /// The mask of frame `k`.
+    pub fn mask(&self, k: u64) -> &[bool] {
+        &self.masks[k as usize % self.masks.len()]
+    }
 }
 
 use glam::Vec3;
 
 fn inputs(s: &BenchSettings) -> Inputs {
     let gbuffer = synthetic::gbuffer(s.width, s.height, SyntheticView::default());
-    let clean = synthetic::clean_radiance(&gbuffer);
-    let radiance = synthetic::noisy_radiance(&clean, 0.8, 1, 1);
-    let masks = (0..4).map(|k| synthetic::random_mask(gbuffer.len(), 1.0 - s.loss, 3, k)).collect();
-    Inputs { gbuffer, radiance, masks }
+    let samples = Samples::new(&gbuffer, s.loss);
+    Inputs { gbuffer, samples }
 }
 
-fn median(mut v: Vec<f64>) -> Option<f64> {
+/// The median of `v`; `None` when it is empty.
+pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
     if v.is_empty() {
         return None;
     }
@@ -109,8 +130,8 @@ pub fn run(s: &BenchSettings) -> anyhow::Result<BenchReport> {
         frame: k + 1,
         state_version: k + 1,
         accumulated_frames: 1,
-        radiance: &inp.radiance,
-        mask: &inp.masks[k as usize % inp.masks.len()],
+        radiance: &inp.samples.radiance,
+        mask: inp.samples.mask(k),
         gbuffer: &inp.gbuffer,
         scene: None,
     };
