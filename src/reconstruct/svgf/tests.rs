@@ -23,7 +23,7 @@ fn cornell() -> (Arc<Assets>, SceneState) {
 
 fn gbuffer(assets: &Arc<Assets>, state: &SceneState) -> GBuffer {
     let scene = RenderScene::new(Arc::clone(assets), state).expect("a scene");
-    GBuffer::from_scene(&scene, assets)
+    GBuffer::from_scene(&scene, crate::gbuffer::scene_scale(state, assets))
 }
 
 /// Demodulated radiance that names the object: 1 + its index.
@@ -103,8 +103,7 @@ fn a_moved_object_takes_its_history_along_and_leaves_disocclusions_empty() {
     run(&mut r, &b, &gb, &by_object(&gb), 4..5, false);
     let h = history(&r);
     let (mut uncovered, mut on_box, mut box_kept) = (0, 0, 0);
-    for i in 0..gb.len() {
-        let o = gb.object[i];
+    for (i, &o) in gb.object.iter().enumerate() {
         if o == moved as u32 {
             on_box += 1;
             box_kept += (h[i].1 > 0.0) as usize;

@@ -185,7 +185,7 @@ fn primitive_piece(
         Some(a) => reader.read_indices().ok_or_else(|| unreadable(a))?.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
     };
-    if flat.len() % 3 != 0 {
+    if !flat.len().is_multiple_of(3) {
         return Err(GltfError::invalid(
             element,
             format!("{} indices are not whole triangles", flat.len()),

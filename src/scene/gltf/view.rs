@@ -133,7 +133,7 @@ pub fn describe(data: &GltfData, asset: &str, warnings: &mut Warnings) -> SceneF
         warnings.push("KHR_lights_punctual range: ignored (inverse-square falloff, no cut-off)");
     }
     let emissive = data.materials.iter().any(|m| m.material.emission.max_element() > 0.0);
-    let environment = (data.lights.is_empty() && !emissive).then(|| EnvironmentDesc {
+    let environment = (data.lights.is_empty() && !emissive).then_some(EnvironmentDesc {
         map: None,
         color: [1.0; 3],
         intensity: DEFAULT_SKY_RADIANCE,

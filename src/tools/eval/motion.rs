@@ -30,7 +30,7 @@ use serde::Serialize;
 
 use super::compare;
 use crate::assets::Assets;
-use crate::gbuffer::GBuffer;
+use crate::gbuffer::{scene_scale, GBuffer};
 use crate::gpu::Backend;
 use crate::master::compose::demodulate;
 use crate::reconstruct::{FrameInputs, Method, ReconstructParams, Reconstructor};
@@ -189,7 +189,7 @@ impl Renderer {
         let all: Vec<u32> = (0..state.resolution.pixels() as u32).collect();
         let gold = self.render(&all, u64::MAX / 2);
         self.scene.set_state(state)?;
-        let g = Arc::new(GBuffer::from_scene(&self.scene, &self.assets));
+        let g = Arc::new(GBuffer::from_scene(&self.scene, scene_scale(state, &self.assets)));
         let gold = Arc::new(gold.iter().map(|s| s.reflected + s.emission).collect::<Vec<_>>());
         self.cached = Some((state.version, Arc::clone(&g), Arc::clone(&gold)));
         Ok((g, gold))
