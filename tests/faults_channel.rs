@@ -251,14 +251,15 @@ fn flip_places(conn: &[Vec<u8>; 2]) -> Vec<Flip> {
     let down = records(&conn[1]);
     let job_len =
         to_frame(&MasterMsg::Job { frame: 1, set: 0, state_version: 1, spp: 4 }).expect("job");
-    let heartbeat = to_frame(&MasterMsg::Heartbeat).expect("heartbeat");
-    assert_ne!(job_len.len(), heartbeat.len(), "a job's record would look like a heartbeat's");
     let results: Vec<_> = up.iter().filter(|(_, r)| r.len() > 300).collect();
-    let is_job = |r: &&(usize, &[u8])| r.1.len() == job_len.len() + TAG_LEN;
-    let jobs: Vec<_> = down.iter().filter(is_job).collect();
-    // Down: Challenge, Welcome, the state, then jobs (the cache is warm: no asset).
-    let first_job = down.iter().position(|r| is_job(&r)).expect("a job");
-    let state = &down[first_job.checked_sub(1).expect("a state before the first job")];
+    // Down: Challenge, Welcome, the state (the largest record: the cache is warm, no
+    // asset), then jobs. Since protocol 10 a heartbeat has a job's length; the master sends
+    // one only after an idle interval, and a flipped heartbeat must be refused as surely
+    // as a flipped job, so the records of a job's length after the state are taken as jobs.
+    let state_at = (0..down.len()).max_by_key(|&i| down[i].1.len()).expect("records down");
+    let state = &down[state_at];
+    let jobs: Vec<_> =
+        down[state_at + 1..].iter().filter(|(_, r)| r.len() == job_len.len() + TAG_LEN).collect();
     assert!(
         results.len() >= 4 && jobs.len() >= 2,
         "{} results, {} jobs",
