@@ -142,6 +142,19 @@ pub struct Reconstructed {
     pub display: Vec<[u8; 4]>,
 }
 
+impl Reconstructed {
+    /// A frame with no planes yet, for `reconstruct_into` to fill.
+    pub fn empty(frame: FrameNo) -> Self {
+        Self {
+            frame,
+            mode: Mode::Interacting,
+            radiance: Vec::new(),
+            colour: Vec::new(),
+            display: Vec::new(),
+        }
+    }
+}
+
 /// A reconstructor a frame sink can call once per shown frame, on the CPU or the GPU.
 #[derive(Debug)]
 #[allow(clippy::large_enum_variant)] // one per sink, never moved in a hot loop

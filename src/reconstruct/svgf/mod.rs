@@ -105,13 +105,7 @@ impl SvgfReconstructor {
     }
 
     pub fn reconstruct(&mut self, inputs: &FrameInputs) -> Result<Reconstructed, ReconstructError> {
-        let mut out = Reconstructed {
-            frame: inputs.frame,
-            mode: Mode::Interacting,
-            radiance: Vec::new(),
-            colour: Vec::new(),
-            display: Vec::new(),
-        };
+        let mut out = Reconstructed::empty(inputs.frame);
         self.reconstruct_into(inputs, &mut out)?;
         Ok(out)
     }
