@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, OnceLock};
 
 use glam::{Vec2, Vec3};
-use gridlight_actors::state::Geometry;
+use gridlight_actors::state::{Geometry, TextureUse};
 
 /// Triangles of one [`Geometry`], in object space.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -61,13 +61,15 @@ pub enum Texels {
     Linear(Vec<Vec3>),
     /// 8-bit sRGB codes, decoded by [`srgb_to_linear`].
     Srgb8(Vec<[u8; 3]>),
+    /// 8-bit linear codes, read as code / 255 (data such as glTF's metallic-roughness).
+    Unorm8(Vec<[u8; 3]>),
 }
 
 impl Texels {
     pub fn len(&self) -> usize {
         match self {
             Self::Linear(t) => t.len(),
-            Self::Srgb8(t) => t.len(),
+            Self::Srgb8(t) | Self::Unorm8(t) => t.len(),
         }
     }
 
@@ -81,6 +83,7 @@ impl Texels {
         match self {
             Self::Linear(t) => t[i],
             Self::Srgb8(t) => srgb8_to_linear(t[i], srgb_table()),
+            Self::Unorm8(t) => unorm8(t[i]),
         }
     }
 
@@ -101,6 +104,11 @@ impl Texture {
         Self { width, height, texels: Texels::Srgb8(codes) }
     }
 
+    /// A texture of 8-bit linear texels (code / 255).
+    pub fn unorm8(width: u32, height: u32, codes: Vec<[u8; 3]>) -> Self {
+        Self { width, height, texels: Texels::Unorm8(codes) }
+    }
+
     /// Bilinear lookup with wrap-around; `uv` (0,0) is the bottom-left corner as in OBJ.
     #[inline(always)]
     pub fn sample(&self, uv: Vec2) -> Vec3 {
@@ -110,6 +118,7 @@ impl Texture {
                 let table = srgb_table();
                 self.bilinear(uv, |i| srgb8_to_linear(t[i], table))
             }
+            Texels::Unorm8(t) => self.bilinear(uv, |i| unorm8(t[i])),
         }
     }
 
@@ -160,6 +169,11 @@ fn srgb8_to_linear(c: [u8; 3], table: &[f32; 256]) -> Vec3 {
     Vec3::new(table[c[0] as usize], table[c[1] as usize], table[c[2] as usize])
 }
 
+#[inline(always)]
+fn unorm8(c: [u8; 3]) -> Vec3 {
+    Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) * (1.0 / 255.0)
+}
+
 /// `x.rem_euclid(1.0)` bit for bit up to the sign of a zero result (which the lookup
 /// cannot see): `x - x.trunc()` is exact (Sterbenz), as `x % 1.0` is, and both round
 /// the negative case's `+ 1.0` once.
@@ -192,14 +206,39 @@ fn index_wrap(i: i64, n: i64) -> usize {
 pub struct Assets {
     /// Geometry of every object, keyed by what the state names.
     pub meshes: HashMap<Geometry, Arc<Mesh>>,
-    /// Albedo textures by asset path (linear RGB).
+    /// Colour textures (albedo) by asset path (sRGB codes, read as linear RGB).
     pub textures: HashMap<String, Arc<Texture>>,
+    /// Data textures (glTF's metallic-roughness) by asset path (linear codes).
+    pub data_textures: HashMap<String, Arc<Texture>>,
     /// Equirectangular environment maps by asset path (linear RGB radiance).
     pub environments: HashMap<String, Arc<Texture>>,
     /// The files each mesh file named (an OBJ's MTL libraries, a glTF's external buffers
     /// and images), by the mesh's asset path: what the manifest lists after it, known from
     /// loading so that the master need not parse the mesh file again.
     pub mesh_companions: HashMap<String, Vec<String>>,
+}
+
+impl Assets {
+    /// The texture a material reads from asset path `path` as `usage`.
+    pub fn texture(&self, path: &str, usage: TextureUse) -> Option<&Arc<Texture>> {
+        self.texture_map(usage).get(path)
+    }
+
+    /// Stores the texture a material reads from asset path `path` as `usage`.
+    pub fn insert_texture(&mut self, path: String, usage: TextureUse, texture: Arc<Texture>) {
+        let map = match usage {
+            TextureUse::Color => &mut self.textures,
+            TextureUse::Data => &mut self.data_textures,
+        };
+        map.insert(path, texture);
+    }
+
+    fn texture_map(&self, usage: TextureUse) -> &HashMap<String, Arc<Texture>> {
+        match usage {
+            TextureUse::Color => &self.textures,
+            TextureUse::Data => &self.data_textures,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -48,7 +48,7 @@ fn gpu_image(
     strategy: Strategy,
 ) -> Vec<PixelSample> {
     let pixels = all_pixels(scene.state());
-    let uploaded = t.upload(scene);
+    let uploaded = t.upload(scene).expect("upload");
     let mut out = Vec::new();
     let stats = t
         .render(&uploaded, &[PixelBatch { frame, pixels: &pixels }], strategy, &mut out)
@@ -200,7 +200,7 @@ fn batches_of_several_frames_match_one_batch_each() {
     let (assets, mut state) = cornell_box(16, 12);
     state.render.spp = 2;
     let scene = RenderScene::new(assets, &state).unwrap();
-    let uploaded = t.upload(&scene);
+    let uploaded = t.upload(&scene).expect("upload");
     let (a, b): (Vec<u32>, Vec<u32>) = (0..16 * 12).partition(|p| p % 3 == 0);
     let mut together = Vec::new();
     let batches = [PixelBatch { frame: 4, pixels: &a }, PixelBatch { frame: 9, pixels: &b }];

@@ -63,12 +63,40 @@ fn material() -> impl Strategy<Value = Material> {
         Just(MaterialKind::Diffuse),
         Just(MaterialKind::Conductor),
         Just(MaterialKind::Glossy),
-        Just(MaterialKind::Dielectric)
+        Just(MaterialKind::Dielectric),
+        Just(MaterialKind::Pbr)
     ];
-    ("[a-z]{1,8}", kind, vec3(), prop::option::of("[a-z]{1,8}\\.png"), 0f32..1.0, 1f32..2.5, vec3())
-        .prop_map(|(name, kind, base_color, base_color_texture, roughness, ior, emission)| {
-            Material { name, kind, base_color, base_color_texture, roughness, ior, emission }
-        })
+    let alpha_mode =
+        prop_oneof![Just(AlphaMode::Opaque), Just(AlphaMode::Mask), Just(AlphaMode::Blend)];
+    let map = || prop::option::of("[a-z]{1,8}\\.png");
+    let base = ("[a-z]{1,8}", kind, vec3(), map(), 0f32..1.0, 1f32..2.5, vec3(), 0f32..10.0);
+    let pbr = (0f32..1.0, 0f32..1.0, 0f32..1.0, alpha_mode, 0f32..1.0, any::<bool>());
+    let maps = (map(), map(), 0f32..2.0, map());
+    (base, pbr, maps).prop_map(|(base, pbr, maps)| {
+        let (name, kind, base_color, base_color_texture, roughness, ior, emission, strength) = base;
+        let (metallic, transmission, alpha, alpha_mode, alpha_cutoff, double_sided) = pbr;
+        let (metallic_roughness_texture, normal_texture, normal_scale, emissive_texture) = maps;
+        Material {
+            name,
+            kind,
+            base_color,
+            base_color_texture,
+            roughness,
+            ior,
+            emission,
+            emission_strength: strength,
+            metallic,
+            transmission,
+            alpha,
+            alpha_mode,
+            alpha_cutoff,
+            double_sided,
+            metallic_roughness_texture,
+            normal_texture,
+            normal_scale,
+            emissive_texture,
+        }
+    })
 }
 
 fn scene_state() -> impl Strategy<Value = SceneState> {

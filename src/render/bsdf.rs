@@ -1,13 +1,14 @@
-//! The scattering functions of the four material kinds, in a local shading frame.
+//! The scattering functions of the material kinds, in a local shading frame (glTF's
+//! metallic-roughness `Pbr` kind in [`super::pbr`]).
 //!
 //! A [`Bsdf`] is a small `Copy` value built per hit from the material table and
 //! the texture lookup; evaluation and sampling `match` on its kind, so there is no
 //! dynamic dispatch per sample. Values returned are `f · |cos θi|` (the cosine is
 //! folded in) with the solid-angle pdf; sampled weights are `f · |cos θi| / pdf`.
 //!
-//! Diffuse, conductor and glossy surfaces are two-sided: the caller flips the frame
-//! so that `wo.z > 0`. Dielectrics keep the outward normal on +z, so `wo.z < 0`
-//! means the ray arrives from inside.
+//! Diffuse, conductor, glossy and opaque `Pbr` surfaces are two-sided: the caller flips
+//! the frame so that `wo.z > 0`. Dielectrics and transmissive `Pbr` surfaces keep the
+//! outward normal on +z, so `wo.z < 0` means the ray arrives from inside.
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -25,8 +26,12 @@ pub struct Bsdf {
     /// Albedo / reflectance / transmission tint (textured).
     pub color: Vec3,
     pub ggx: Ggx,
-    /// Index of refraction (inside over outside) of dielectrics and glossy coats.
+    /// Index of refraction (inside over outside) of dielectrics, glossy coats and `Pbr`.
     pub eta: f32,
+    /// `Pbr` only (0 otherwise): the metal's share of the material.
+    pub metallic: f32,
+    /// `Pbr` only (0 otherwise): the glass's share of the non-metal.
+    pub transmission: f32,
 }
 
 /// One sampled direction.
@@ -51,20 +56,38 @@ impl Bsdf {
             alpha = alpha.max(Self::MIN_COAT_ALPHA);
         }
         let eta = if ior.is_finite() && ior > 0.0 && ior != 1.0 { ior } else { 1.5 };
-        Self { kind, color, ggx: Ggx { alpha }, eta }
+        Self { kind, color, ggx: Ggx { alpha }, eta, metallic: 0.0, transmission: 0.0 }
+    }
+
+    /// A glTF metallic-roughness surface (`MaterialKind::Pbr`); `metallic` and
+    /// `transmission` are clamped to [0, 1].
+    pub fn pbr(color: Vec3, metallic: f32, roughness: f32, transmission: f32, ior: f32) -> Self {
+        let unit = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+        Self {
+            metallic: unit(metallic),
+            transmission: unit(transmission),
+            ..Self::new(MaterialKind::Pbr, color, roughness, ior)
+        }
     }
 
     /// Whether every sampled direction is a delta (light sampling is useless).
     #[inline]
     pub fn is_delta(&self) -> bool {
-        matches!(self.kind, MaterialKind::Conductor | MaterialKind::Dielectric)
-            && self.ggx.alpha < Ggx::SMOOTH
+        match self.kind {
+            MaterialKind::Conductor | MaterialKind::Dielectric => self.ggx.alpha < Ggx::SMOOTH,
+            MaterialKind::Pbr => self.pbr_is_delta(),
+            MaterialKind::Diffuse | MaterialKind::Glossy => false,
+        }
     }
 
     /// Whether the frame is two-sided (flipped so that `wo.z > 0`).
     #[inline]
     pub fn two_sided(&self) -> bool {
-        self.kind != MaterialKind::Dielectric
+        match self.kind {
+            MaterialKind::Dielectric => false,
+            MaterialKind::Pbr => self.transmission == 0.0,
+            _ => true,
+        }
     }
 
     /// `f(wo, wi) · |cos θi|` and the pdf of sampling `wi`.
@@ -83,6 +106,7 @@ impl Bsdf {
             MaterialKind::Conductor => self.eval_conductor(wo, wi),
             MaterialKind::Glossy => self.eval_glossy(wo, wi),
             MaterialKind::Dielectric => self.eval_dielectric(wo, wi),
+            MaterialKind::Pbr => self.eval_pbr(wo, wi),
         }
     }
 
@@ -130,12 +154,13 @@ impl Bsdf {
                 self.weighted(wo, wi)
             }
             MaterialKind::Dielectric => self.sample_dielectric(wo, u),
+            MaterialKind::Pbr => self.sample_pbr(wo, u),
         }
     }
 
     /// A sample whose weight comes from `eval` (for the mixed lobes).
     #[inline]
-    fn weighted(&self, wo: Vec3, wi: Vec3) -> Option<BsdfSample> {
+    pub(super) fn weighted(&self, wo: Vec3, wi: Vec3) -> Option<BsdfSample> {
         let (f, pdf) = self.eval(wo, wi);
         (pdf > 0.0).then(|| BsdfSample { wi, weight: f / pdf, pdf, delta: false })
     }
@@ -180,7 +205,7 @@ impl Bsdf {
         (Vec3::splat(spec) + diffuse, pdf)
     }
 
-    fn eval_dielectric(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    pub(super) fn eval_dielectric(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let (cos_o, cos_i) = (wo.z, wi.z);
         if cos_o == 0.0 || cos_i == 0.0 {
             return (Vec3::ZERO, 0.0);
@@ -258,7 +283,7 @@ impl Bsdf {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::render::sampler::SampleStream;
     use std::f32::consts::PI;
@@ -277,14 +302,14 @@ mod tests {
         ]
     }
 
-    fn directions() -> Vec<Vec3> {
+    pub(in crate::render) fn directions() -> Vec<Vec3> {
         [0.95f32, 0.6, 0.25, 0.05]
             .iter()
             .map(|&c| Vec3::new((1.0 - c * c).sqrt(), 0.0, c))
             .collect()
     }
 
-    fn uniforms(n: u32, seed: u64) -> impl Iterator<Item = [f32; 3]> {
+    pub(in crate::render) fn uniforms(n: u32, seed: u64) -> impl Iterator<Item = [f32; 3]> {
         (0..n).map(move |i| {
             let p = SampleStream::new(seed, 0, 0, i).next4();
             [p[0], p[1], p[2]]
@@ -337,77 +362,82 @@ mod tests {
     /// must match the integral of the evaluated pdf over each bin.
     #[test]
     fn sampled_pdf_matches_evaluated_pdf() {
-        const NT: usize = 12;
-        const NP: usize = 24;
         for (name, bsdf) in materials() {
             if bsdf.is_delta() {
                 continue;
             }
             for wo in directions().into_iter().take(3) {
-                let n = 60_000u32;
-                let mut observed = vec![0f64; 2 * NT * NP];
-                let bin = |w: Vec3| {
-                    let t = (((w.z + 1.0) * 0.5 * (2 * NT) as f32) as usize).min(2 * NT - 1);
-                    let phi = w.y.atan2(w.x).rem_euclid(2.0 * PI);
-                    let p = ((phi / (2.0 * PI) * NP as f32) as usize).min(NP - 1);
-                    t * NP + p
-                };
-                for u in uniforms(n, 17) {
-                    if let Some(s) = bsdf.sample(wo, u) {
-                        observed[bin(s.wi)] += 1.0;
-                        let (_, pdf) = bsdf.eval(wo, s.wi);
-                        assert!(
-                            (pdf - s.pdf).abs() <= 1e-2 * pdf.max(1.0),
-                            "{name}: sampled pdf {} vs eval {pdf}",
-                            s.pdf
-                        );
-                    }
+                assert_sampled_pdf_matches(name, &bsdf, wo);
+            }
+        }
+    }
+
+    /// Samples `bsdf` at `wo`: each sample's pdf must be the evaluated one, and their
+    /// histogram over (cos θ, φ) must match the evaluated pdf's integral over each bin
+    /// (chi-square; delta samples are left out of both, their share of the count too).
+    pub(in crate::render) fn assert_sampled_pdf_matches(name: &str, bsdf: &Bsdf, wo: Vec3) {
+        const NT: usize = 12;
+        const NP: usize = 24;
+        let n = 60_000u32;
+        let mut observed = vec![0f64; 2 * NT * NP];
+        let bin = |w: Vec3| {
+            let t = (((w.z + 1.0) * 0.5 * (2 * NT) as f32) as usize).min(2 * NT - 1);
+            let phi = w.y.atan2(w.x).rem_euclid(2.0 * PI);
+            let p = ((phi / (2.0 * PI) * NP as f32) as usize).min(NP - 1);
+            t * NP + p
+        };
+        for u in uniforms(n, 17) {
+            if let Some(s) = bsdf.sample(wo, u) {
+                if s.delta {
+                    continue;
                 }
-                // Expected counts by midpoint-rule integration of the pdf in each bin.
-                let sub = 6;
-                let mut expected = vec![0f64; 2 * NT * NP];
-                for (b, e) in expected.iter_mut().enumerate() {
-                    let (t, p) = (b / NP, b % NP);
-                    let mut acc = 0.0;
-                    for i in 0..sub {
-                        for j in 0..sub {
-                            let z = -1.0
-                                + (t as f32 + (i as f32 + 0.5) / sub as f32) * 2.0
-                                    / (2 * NT) as f32;
-                            let phi =
-                                (p as f32 + (j as f32 + 0.5) / sub as f32) * 2.0 * PI / NP as f32;
-                            let r = (1.0 - z * z).max(0.0).sqrt();
-                            let w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-                            acc += bsdf.eval(wo, w).1 as f64;
-                        }
-                    }
-                    let area = (2.0 / (2 * NT) as f64) * (2.0 * std::f64::consts::PI / NP as f64);
-                    *e = acc / (sub * sub) as f64 * area * n as f64;
-                }
-                let mut chi2 = 0.0;
-                let mut dof = 0;
-                let (mut pooled_o, mut pooled_e) = (0.0, 0.0);
-                for (o, e) in observed.iter().zip(&expected) {
-                    if *e < 5.0 {
-                        pooled_o += o;
-                        pooled_e += e;
-                    } else {
-                        chi2 += (o - e) * (o - e) / e;
-                        dof += 1;
-                    }
-                }
-                if pooled_e >= 5.0 {
-                    chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
-                    dof += 1;
-                }
-                // Generous bound (midpoint integration is approximate on peaked lobes):
-                // a wrong pdf gives chi² many times the degrees of freedom.
-                eprintln!("{name} at {wo}: chi² {chi2:.0} with {dof} bins");
+                observed[bin(s.wi)] += 1.0;
+                let (_, pdf) = bsdf.eval(wo, s.wi);
                 assert!(
-                    chi2 < 2.0 * dof as f64 + 60.0,
-                    "{name} at {wo}: chi² {chi2:.0} with {dof} bins"
+                    (pdf - s.pdf).abs() <= 1e-2 * pdf.max(1.0),
+                    "{name}: sampled pdf {} vs eval {pdf}",
+                    s.pdf
                 );
             }
         }
+        // Expected counts by midpoint-rule integration of the pdf in each bin.
+        let sub = 6;
+        let mut expected = vec![0f64; 2 * NT * NP];
+        for (b, e) in expected.iter_mut().enumerate() {
+            let (t, p) = (b / NP, b % NP);
+            let mut acc = 0.0;
+            for i in 0..sub {
+                for j in 0..sub {
+                    let z =
+                        -1.0 + (t as f32 + (i as f32 + 0.5) / sub as f32) * 2.0 / (2 * NT) as f32;
+                    let phi = (p as f32 + (j as f32 + 0.5) / sub as f32) * 2.0 * PI / NP as f32;
+                    let r = (1.0 - z * z).max(0.0).sqrt();
+                    let w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                    acc += bsdf.eval(wo, w).1 as f64;
+                }
+            }
+            let area = (2.0 / (2 * NT) as f64) * (2.0 * std::f64::consts::PI / NP as f64);
+            *e = acc / (sub * sub) as f64 * area * n as f64;
+        }
+        let mut chi2 = 0.0;
+        let mut dof = 0;
+        let (mut pooled_o, mut pooled_e) = (0.0, 0.0);
+        for (o, e) in observed.iter().zip(&expected) {
+            if *e < 5.0 {
+                pooled_o += o;
+                pooled_e += e;
+            } else {
+                chi2 += (o - e) * (o - e) / e;
+                dof += 1;
+            }
+        }
+        if pooled_e >= 5.0 {
+            chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
+            dof += 1;
+        }
+        // Generous bound (midpoint integration is approximate on peaked lobes):
+        // a wrong pdf gives chi² many times the degrees of freedom.
+        eprintln!("{name} at {wo}: chi² {chi2:.0} with {dof} bins");
+        assert!(chi2 < 2.0 * dof as f64 + 60.0, "{name} at {wo}: chi² {chi2:.0} with {dof} bins");
     }
 }

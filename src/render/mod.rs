@@ -23,6 +23,7 @@ pub mod isa;
 pub mod lanes;
 pub mod lights;
 pub mod microfacet;
+pub mod pbr;
 pub mod sampler;
 mod stream;
 pub mod testscenes;
@@ -31,8 +32,8 @@ pub mod trig;
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use glam::{Affine3A, Vec3};
-use gridlight_actors::state::{Geometry, MaterialKind, SceneState};
+use glam::{Affine3A, Vec2, Vec3};
+use gridlight_actors::state::{Geometry, MaterialKind, SceneState, TextureUse};
 
 use crate::assets::{Assets, Mesh, Texture};
 use crate::shapes;
@@ -107,13 +108,43 @@ pub struct MaterialData {
     pub texture: Option<Arc<Texture>>,
     pub roughness: f32,
     pub ior: f32,
+    /// Emitted radiance, the state's `emission` times its `emission_strength`.
     pub emission: Vec3,
+    /// `Pbr` only.
+    pub metallic: f32,
+    /// `Pbr` only.
+    pub transmission: f32,
+    /// `Pbr` only: B multiplies `metallic`, G `roughness` (linear).
+    pub metallic_roughness: Option<Arc<Texture>>,
 }
 
 impl MaterialData {
     #[inline]
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0
+    }
+
+    /// Whether a hit needs its texture coordinates.
+    #[inline(always)]
+    pub fn textured(&self) -> bool {
+        self.texture.is_some() || self.metallic_roughness.is_some()
+    }
+
+    /// The scattering function at texture coordinates `uv`, of albedo `albedo`.
+    #[inline(always)]
+    pub fn bsdf(&self, albedo: Vec3, uv: Vec2) -> bsdf::Bsdf {
+        match self.kind {
+            MaterialKind::Pbr => {
+                let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+                if let Some(t) = &self.metallic_roughness {
+                    let texel = t.sample(uv);
+                    metallic *= texel.z;
+                    roughness *= texel.y;
+                }
+                bsdf::Bsdf::pbr(albedo, metallic, roughness, self.transmission, self.ior)
+            }
+            kind => bsdf::Bsdf::new(kind, albedo, self.roughness, self.ior),
+        }
     }
 }
 
@@ -261,35 +292,41 @@ impl RenderScene {
             .materials
             .iter()
             .map(|m| {
+                let unit = |v: f32| (0.0..=1.0).contains(&v);
                 let ok = m.base_color.is_finite()
                     && m.base_color.min_element() >= 0.0
                     && m.emission.is_finite()
                     && m.emission.min_element() >= 0.0
+                    && m.emission_strength.is_finite()
+                    && m.emission_strength >= 0.0
                     && m.roughness.is_finite()
-                    && m.ior.is_finite();
+                    && m.ior.is_finite()
+                    && unit(m.metallic)
+                    && unit(m.transmission);
                 if !ok {
                     return Err(RenderError::BadMaterial { material: m.name.clone() });
                 }
-                let texture = match &m.base_color_texture {
-                    None => None,
-                    Some(path) => {
-                        let tex = self.assets.textures.get(path).ok_or_else(|| {
-                            RenderError::MissingTexture {
-                                material: m.name.clone(),
-                                path: path.clone(),
-                            }
-                        })?;
-                        check_texture(path, tex)?;
-                        Some(tex.clone())
+                let (mut texture, mut metallic_roughness) = (None, None);
+                for (path, usage) in m.textures() {
+                    let tex = self.assets.texture(path, usage).ok_or_else(|| {
+                        RenderError::MissingTexture { material: m.name.clone(), path: path.into() }
+                    })?;
+                    check_texture(path, tex)?;
+                    match usage {
+                        TextureUse::Color => texture = Some(tex.clone()),
+                        TextureUse::Data => metallic_roughness = Some(tex.clone()),
                     }
-                };
+                }
                 Ok(MaterialData {
                     kind: m.kind,
                     base_color: m.base_color,
                     texture,
                     roughness: m.roughness,
                     ior: m.ior,
-                    emission: m.emission,
+                    emission: m.emission * m.emission_strength,
+                    metallic: m.metallic,
+                    transmission: m.transmission,
+                    metallic_roughness,
                 })
             })
             .collect()

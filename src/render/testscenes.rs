@@ -16,15 +16,7 @@ use crate::assets::Assets;
 
 /// A material of the given kind and colour, no texture, no emission.
 pub fn material(name: &str, kind: MaterialKind, base_color: Vec3, roughness: f32) -> Material {
-    Material {
-        name: name.into(),
-        kind,
-        base_color,
-        base_color_texture: None,
-        roughness,
-        ior: 1.5,
-        emission: Vec3::ZERO,
-    }
+    Material { kind, roughness, ..Material::diffuse(name, base_color) }
 }
 
 fn object(name: &str, geometry: Geometry, material: u32, transform: Transform) -> Object {

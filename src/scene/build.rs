@@ -11,14 +11,14 @@ use std::sync::Arc;
 
 use glam::{EulerRot, Quat, Vec3};
 use gridlight_actors::state::{
-    Camera, Environment, Geometry, Light, Material, MaterialId, MaterialKind, Object,
+    AlphaMode, Camera, Environment, Geometry, Light, Material, MaterialId, MaterialKind, Object,
     RenderSettings, Resolution, SceneState, Transform,
 };
 
 use super::description::*;
 use super::error::{AssetError, Problem, SceneError};
 use super::gltf::{is_gltf, Warnings};
-use super::loader::{load_albedo_texture, load_environment};
+use super::loader::{load_environment, load_texture};
 use super::loader::{read_mesh_file, MeshFile};
 use super::search::{check_asset_path, AssetResolver};
 use super::LoadedScene;
@@ -234,31 +234,70 @@ impl Builder<'_> {
         Ok(())
     }
 
-    fn material(&self, m: &MaterialDesc, key: &str) -> Result<Material, SceneError> {
+    fn material(&mut self, m: &MaterialDesc, key: &str) -> Result<Material, SceneError> {
         if m.name.trim().is_empty() {
             return Err(self.invalid(format!("{key}.name"), "must not be empty"));
         }
         let base_color = self.colour(m.base_color, &format!("{key}.base_color"))?;
         let emission = self.colour(m.emission, &format!("{key}.emission"))?;
-        let roughness = self.scalar(m.roughness, &format!("{key}.roughness"))?;
-        if !(0.0..=1.0).contains(&roughness) {
-            return Err(
-                self.invalid(format!("{key}.roughness"), format!("{roughness} is not in [0, 1]"))
-            );
-        }
+        let roughness = self.unit(m.roughness, &format!("{key}.roughness"))?;
         let ior = self.scalar(m.ior, &format!("{key}.ior"))?;
         if !(1.0..=4.0).contains(&ior) {
             return Err(self.invalid(format!("{key}.ior"), format!("{ior} is not in [1, 4]")));
-        }
-        if let Some(t) = &m.texture {
-            check_asset_path(t).map_err(|e| self.asset(format!("{key}.texture"), e))?;
         }
         let kind = match m.kind {
             KindDesc::Diffuse => MaterialKind::Diffuse,
             KindDesc::Conductor => MaterialKind::Conductor,
             KindDesc::Glossy => MaterialKind::Glossy,
             KindDesc::Dielectric => MaterialKind::Dielectric,
+            KindDesc::Pbr => MaterialKind::Pbr,
         };
+        // The glTF parameters mean nothing to the other kinds: refused there, not ignored.
+        let pbr_only = [
+            ("metallic", m.metallic.is_some()),
+            ("transmission", m.transmission.is_some()),
+            ("metallic_roughness_map", m.metallic_roughness_map.is_some()),
+            ("normal_map", m.normal_map.is_some()),
+            ("normal_scale", m.normal_scale.is_some()),
+            ("emissive_map", m.emissive_map.is_some()),
+        ];
+        if let Some((name, _)) = pbr_only.iter().find(|(_, set)| *set && kind != MaterialKind::Pbr)
+        {
+            return Err(self.invalid(format!("{key}.{name}"), "needs kind = \"pbr\""));
+        }
+        for (name, path) in [
+            ("texture", &m.texture),
+            ("metallic_roughness_map", &m.metallic_roughness_map),
+            ("normal_map", &m.normal_map),
+            ("emissive_map", &m.emissive_map),
+        ] {
+            if let Some(t) = path {
+                check_asset_path(t).map_err(|e| self.asset(format!("{key}.{name}"), e))?;
+            }
+        }
+        let strength_key = format!("{key}.emission_strength");
+        let emission_strength = self.scalar(m.emission_strength.unwrap_or(1.0), &strength_key)?;
+        if emission_strength < 0.0 {
+            return Err(self.invalid(strength_key, "must not be negative"));
+        }
+        let alpha = self.unit(m.alpha.unwrap_or(1.0), &format!("{key}.alpha"))?;
+        let alpha_cutoff =
+            self.unit(m.alpha_cutoff.unwrap_or(0.5), &format!("{key}.alpha_cutoff"))?;
+        let alpha_mode = match m.alpha_mode {
+            AlphaModeDesc::Opaque => AlphaMode::Opaque,
+            AlphaModeDesc::Mask => AlphaMode::Mask,
+            AlphaModeDesc::Blend => AlphaMode::Blend,
+        };
+        let unrendered = [
+            (m.normal_map.is_some(), "normal_map: not rendered yet"),
+            (m.emissive_map.is_some(), "emissive_map: not rendered yet (emission is uniform)"),
+            (alpha_mode != AlphaMode::Opaque, "alpha_mode mask and blend: drawn opaque"),
+        ];
+        for (used, what) in unrendered {
+            if used {
+                self.warnings.push(format!("material `{}`: {what}", m.name));
+            }
+        }
         Ok(Material {
             name: m.name.clone(),
             kind,
@@ -267,21 +306,35 @@ impl Builder<'_> {
             roughness,
             ior,
             emission,
+            emission_strength,
+            metallic: self.unit(m.metallic.unwrap_or(0.0), &format!("{key}.metallic"))?,
+            transmission: self
+                .unit(m.transmission.unwrap_or(0.0), &format!("{key}.transmission"))?,
+            alpha,
+            alpha_mode,
+            alpha_cutoff,
+            double_sided: m.double_sided.unwrap_or(true),
+            metallic_roughness_texture: m.metallic_roughness_map.clone(),
+            normal_texture: m.normal_map.clone(),
+            normal_scale: self
+                .scalar(m.normal_scale.unwrap_or(1.0), &format!("{key}.normal_scale"))?,
+            emissive_texture: m.emissive_map.clone(),
         })
+    }
+
+    /// A finite value in [0, 1].
+    fn unit(&self, v: f32, key: &str) -> Result<f32, SceneError> {
+        let v = self.scalar(v, key)?;
+        if !(0.0..=1.0).contains(&v) {
+            return Err(self.invalid(key, format!("{v} is not in [0, 1]")));
+        }
+        Ok(v)
     }
 
     /// The id of the default grey material, added on first use.
     fn default_material(&mut self, names: &mut HashMap<String, MaterialId>) -> MaterialId {
         *names.entry(DEFAULT_MATERIAL.to_owned()).or_insert_with(|| {
-            let material = Material {
-                name: DEFAULT_MATERIAL.to_owned(),
-                kind: MaterialKind::Diffuse,
-                base_color: Vec3::splat(0.8),
-                base_color_texture: None,
-                roughness: 1.0,
-                ior: 1.5,
-                emission: Vec3::ZERO,
-            };
+            let material = Material::diffuse(DEFAULT_MATERIAL, Vec3::splat(0.8));
             self.materials.push((material, String::new()));
             self.materials.len() as MaterialId - 1
         })
@@ -373,8 +426,8 @@ impl Builder<'_> {
                     for w in data.warnings {
                         self.warnings.push(format!("{mesh}: {w}"));
                     }
-                    for (texture_key, texture) in data.textures {
-                        self.assets.textures.insert(texture_key, Arc::new(texture));
+                    for (texture_key, usage, texture) in data.textures {
+                        self.assets.insert_texture(texture_key, usage, Arc::new(texture));
                     }
                     self.assets.mesh_companions.insert(mesh.clone(), data.companions);
                     self.assets.meshes.insert(geometry.clone(), Arc::new(data.mesh));
@@ -545,18 +598,19 @@ impl Builder<'_> {
         Ok(Environment { map: e.map.clone(), color, intensity, rotation_deg })
     }
 
-    /// Loads every material's albedo texture; errors name the key the texture came from.
+    /// Loads every material's textures; errors name the key the texture came from.
     fn load_textures(&mut self) -> Result<(), SceneError> {
         for (material, key) in &self.materials {
-            let Some(path) = &material.base_color_texture else { continue };
-            if self.assets.textures.contains_key(path) {
-                continue;
+            for (path, usage) in material.textures() {
+                if self.assets.texture(path, usage).is_some() {
+                    continue;
+                }
+                let texture = load_texture(path, usage, self.resolver).map_err(|err| {
+                    let what = format!("material `{}`: texture `{path}`: {err}", material.name);
+                    SceneError::new(self.path, key.clone(), Problem::Invalid(what))
+                })?;
+                self.assets.insert_texture(path.to_owned(), usage, Arc::new(texture));
             }
-            let texture = load_albedo_texture(path, self.resolver).map_err(|err| {
-                let what = format!("material `{}`: texture: {err}", material.name);
-                SceneError::new(self.path, key.clone(), Problem::Invalid(what))
-            })?;
-            self.assets.textures.insert(path.clone(), Arc::new(texture));
         }
         Ok(())
     }

@@ -154,6 +154,18 @@ pub enum KindDesc {
     Conductor,
     Glossy,
     Dielectric,
+    /// glTF 2.0 metallic-roughness.
+    Pbr,
+}
+
+/// `alpha_mode = "opaque"` (default), `"mask"` or `"blend"`, as glTF's `alphaMode`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AlphaModeDesc {
+    #[default]
+    Opaque,
+    Mask,
+    Blend,
 }
 
 /// `[[materials]]`: a named material that objects refer to.
@@ -177,6 +189,28 @@ pub struct MaterialDesc {
     /// Emitted radiance (linear RGB).
     #[serde(default)]
     pub emission: [f32; 3],
+    /// Multiplies `emission`; default 1.
+    pub emission_strength: Option<f32>,
+    /// `pbr`: 0 (default) a non-metal, 1 a metal.
+    pub metallic: Option<f32>,
+    /// `pbr`: share of the non-metal's diffuse base replaced by rough glass; default 0.
+    pub transmission: Option<f32>,
+    /// `pbr`: asset path of a linear map, B × `metallic`, G × `roughness`.
+    pub metallic_roughness_map: Option<String>,
+    /// `pbr`: asset path of a tangent-space normal map (not rendered yet: a warning).
+    pub normal_map: Option<String>,
+    /// `pbr`: the normal map's xy scale; default 1.
+    pub normal_scale: Option<f32>,
+    /// `pbr`: asset path of an sRGB map multiplying `emission` (not rendered yet).
+    pub emissive_map: Option<String>,
+    /// Coverage in [0, 1]; default 1 (anything else is not rendered yet: a warning).
+    pub alpha: Option<f32>,
+    #[serde(default)]
+    pub alpha_mode: AlphaModeDesc,
+    /// `alpha_mode = "mask"`: covered where alpha ≥ this; default 0.5.
+    pub alpha_cutoff: Option<f32>,
+    /// glTF's `doubleSided`; default true (gridlight shades both sides either way).
+    pub double_sided: Option<bool>,
 }
 
 fn default_base_color() -> [f32; 3] {

@@ -1,13 +1,14 @@
 //! Asset data for a scene state: meshes, textures and environment maps, read through an
 //! [`AssetResolver`] (the master's search path or a worker's cache).
 //!
-//! Albedo textures keep their 8-bit sRGB codes, linearised at lookup (`assets::Texels`);
+//! Textures keep their 8-bit codes: albedo sRGB, linearised at lookup, data (glTF's
+//! metallic-roughness) linear (`assets::Texels`);
 //! environment maps (Radiance `.hdr`, OpenEXR) are linear already and are only checked.
 
 use std::sync::Arc;
 
 use glam::Vec3;
-use gridlight_actors::state::{Geometry, Material, SceneState};
+use gridlight_actors::state::{Geometry, Material, SceneState, TextureUse};
 
 use super::error::AssetError;
 use super::gltf::{is_gltf, read_gltf, GltfData};
@@ -26,8 +27,8 @@ pub struct MeshFile {
     pub materials: Vec<Material>,
     /// Asset paths of the files it named and that were read (MTL, buffers, images).
     pub companions: Vec<String>,
-    /// Albedo textures the file decoded itself (a glTF's), by texture key.
-    pub textures: Vec<(String, Texture)>,
+    /// Textures the file decoded itself (a glTF's), by texture key and use.
+    pub textures: Vec<(String, TextureUse, Texture)>,
     /// What the file asks that is not rendered, one line per feature.
     pub warnings: Vec<String>,
 }
@@ -77,8 +78,8 @@ pub fn load_assets(state: &SceneState, resolver: &dyn AssetResolver) -> Result<A
             Geometry::Obj { path } | Geometry::Gltf { path } => {
                 let file = read_mesh_file(path, resolver)?;
                 assets.mesh_companions.insert(path.clone(), file.companions);
-                for (key, texture) in file.textures {
-                    assets.textures.insert(key, Arc::new(texture));
+                for (key, usage, texture) in file.textures {
+                    assets.insert_texture(key, usage, Arc::new(texture));
                 }
                 file.mesh
             }
@@ -87,11 +88,10 @@ pub fn load_assets(state: &SceneState, resolver: &dyn AssetResolver) -> Result<A
         assets.meshes.insert(object.geometry.clone(), Arc::new(mesh));
     }
     for material in &state.materials {
-        if let Some(path) = &material.base_color_texture {
-            if !assets.textures.contains_key(path) {
-                assets
-                    .textures
-                    .insert(path.clone(), Arc::new(load_albedo_texture(path, resolver)?));
+        for (path, usage) in material.textures() {
+            if assets.texture(path, usage).is_none() {
+                let texture = Arc::new(load_texture(path, usage, resolver)?);
+                assets.insert_texture(path.to_owned(), usage, texture);
             }
         }
     }
@@ -111,12 +111,25 @@ pub fn load_mesh(geometry: &Geometry, resolver: &dyn AssetResolver) -> Result<Me
     }
 }
 
-/// An 8-bit sRGB albedo texture (PNG, JPEG, TGA …) decoded to linear RGB; alpha is dropped.
-pub fn load_albedo_texture(
+/// An 8-bit texture (PNG, JPEG, TGA …) read as `usage` says; alpha is dropped.
+pub fn load_texture(
     asset: &str,
+    usage: TextureUse,
     resolver: &dyn AssetResolver,
 ) -> Result<Texture, AssetError> {
-    Ok(albedo_texture(&resolver.read(asset)?.decode_image()?))
+    Ok(texture_of(&resolver.read(asset)?.decode_image()?, usage))
+}
+
+/// A decoded image as a texture read as `usage` says; alpha is dropped.
+pub fn texture_of(image: &image::DynamicImage, usage: TextureUse) -> Texture {
+    match usage {
+        TextureUse::Color => albedo_texture(image),
+        TextureUse::Data => {
+            let rgb = image.to_rgb8();
+            let codes = rgb.pixels().map(|p| p.0).collect();
+            Texture::unorm8(rgb.width(), rgb.height(), codes)
+        }
+    }
 }
 
 /// A decoded image as an sRGB albedo texture; alpha is dropped.
@@ -159,15 +172,17 @@ mod tests {
     }
 
     #[test]
-    fn albedo_textures_are_linearised() {
+    fn albedo_textures_are_linearised_and_data_textures_are_not() {
         let dir = tempfile::tempdir().expect("tempdir");
         let img =
             image::RgbImage::from_fn(2, 1, |x, _| image::Rgb([if x == 0 { 0 } else { 188 }; 3]));
         img.save(dir.path().join("t.png")).expect("save png");
         let resolver = AssetSearchPath::from_dirs(vec![dir.path().into()]);
-        let tex = load_albedo_texture("t.png", &resolver).expect("load");
+        let tex = load_texture("t.png", TextureUse::Color, &resolver).expect("load");
         assert_eq!((tex.width, tex.height), (2, 1));
         assert_eq!(tex.texels.get(0), Vec3::ZERO);
         assert!((tex.texels.get(1).x - 0.5).abs() < 0.01);
+        let data = load_texture("t.png", TextureUse::Data, &resolver).expect("load");
+        assert_eq!(data.texels.get(1), Vec3::splat(188.0 / 255.0));
     }
 }

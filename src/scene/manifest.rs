@@ -64,7 +64,7 @@ fn paths_with(
         }
     }
     for material in &state.materials {
-        if let Some(texture) = &material.base_color_texture {
+        for (texture, _) in material.textures() {
             if embedded_image(texture).is_some() {
                 continue;
             }

@@ -53,6 +53,7 @@ pub fn convert(mtl: &tobj::Material, obj_asset: &str, name: String) -> Material 
         roughness,
         ior,
         emission: clean(emission),
+        ..Material::diffuse("", Vec3::ZERO)
     }
 }
 

@@ -353,6 +353,7 @@ fn selection_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<Pa
                         MaterialKind::Glossy,
                         MaterialKind::Conductor,
                         MaterialKind::Dielectric,
+                        MaterialKind::Pbr,
                     ] {
                         ui.selectable_value(&mut m.kind, kind, kind_label(kind));
                     }
@@ -363,7 +364,12 @@ fn selection_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<Pa
                 colour_edit(ui, &mut m.base_color);
             });
             ui.add(egui::Slider::new(&mut m.roughness, 0.0..=1.0).text("roughness"));
-            if matches!(m.kind, MaterialKind::Dielectric | MaterialKind::Glossy) {
+            if m.kind == MaterialKind::Pbr {
+                ui.add(egui::Slider::new(&mut m.metallic, 0.0..=1.0).text("metallic"));
+                ui.add(egui::Slider::new(&mut m.transmission, 0.0..=1.0).text("transmission"));
+            }
+            if matches!(m.kind, MaterialKind::Dielectric | MaterialKind::Glossy | MaterialKind::Pbr)
+            {
                 ui.add(egui::Slider::new(&mut m.ior, 1.0..=2.5).text("IOR"));
             }
             let (mut colour, mut strength) = split_power(m.emission);
@@ -502,6 +508,7 @@ fn kind_label(kind: MaterialKind) -> &'static str {
         MaterialKind::Glossy => "glossy (plastic)",
         MaterialKind::Conductor => "metal",
         MaterialKind::Dielectric => "glass",
+        MaterialKind::Pbr => "glTF metallic-roughness",
     }
 }
 

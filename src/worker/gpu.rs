@@ -112,7 +112,7 @@ pub fn calibrate(tracer: &GpuTracer) -> Result<f64, WorkerError> {
     let (assets, mut state) = crate::render::testscenes::cornell_box(160, 120);
     state.render.spp = 4;
     let scene = RenderScene::new(assets, &state).map_err(|e| WorkerError::Render(e.to_string()))?;
-    let uploaded = tracer.upload(&scene);
+    let uploaded = tracer.upload(&scene).map_err(|e| WorkerError::Render(e.to_string()))?;
     let pixels: Vec<u32> = (0..160 * 120).collect();
     let mut out = Vec::new();
     let batch = [PixelBatch { frame: 0, pixels: &pixels }];
@@ -187,7 +187,7 @@ fn render_group(
     bring_scene_to(scene, Some(&first.link.view), &first.link.shared, state)?;
     let scene = scene.as_ref().ok_or_else(|| WorkerError::Render("no render scene".into()))?;
     if uploaded.as_ref().is_none_or(|u| u.version() != state.version) {
-        *uploaded = Some(tracer.upload(scene));
+        *uploaded = Some(tracer.upload(scene).map_err(|e| WorkerError::Render(e.to_string()))?);
     }
     let uploaded = uploaded.as_mut().ok_or_else(|| WorkerError::Render("no GPU scene".into()))?;
     uploaded.set_spp(first.job.spp);

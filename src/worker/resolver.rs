@@ -26,8 +26,8 @@ pub fn assets_cover(assets: &Assets, state: &SceneState) -> bool {
     let textures = state
         .materials
         .iter()
-        .filter_map(|m| m.base_color_texture.as_ref())
-        .all(|t| assets.textures.contains_key(t));
+        .flat_map(|m| m.textures())
+        .all(|(path, usage)| assets.texture(path, usage).is_some());
     let environment = state
         .environment
         .as_ref()

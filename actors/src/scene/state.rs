@@ -177,6 +177,24 @@ pub enum MaterialKind {
     Glossy,
     /// Smooth (roughness 0) or rough GGX glass.
     Dielectric,
+    /// glTF 2.0 metallic-roughness (the specification's BRDF appendix): a Lambertian base
+    /// under an F0 = ((ior − 1)/(ior + 1))² GGX layer, mixed with a GGX metal of
+    /// reflectance `base_color` by `metallic`; `transmission` replaces the non-metal's
+    /// diffuse base by rough glass (`KHR_materials_transmission`).
+    Pbr,
+}
+
+/// How a material's `alpha` (times its base colour texture's alpha) covers the surface
+/// (glTF's `alphaMode`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum AlphaMode {
+    /// Alpha is ignored.
+    #[default]
+    Opaque,
+    /// Covered where alpha ≥ `alpha_cutoff`, absent elsewhere.
+    Mask,
+    /// Covered with probability alpha.
+    Blend,
 }
 
 /// Material parameters; everything here can be edited live.
@@ -192,8 +210,30 @@ pub struct Material {
     pub roughness: f32,
     /// Index of refraction (dielectric, and the coat of `Glossy`).
     pub ior: f32,
-    /// Emitted radiance (linear RGB); non-zero makes the surface a light.
+    /// Emitted radiance (linear RGB), times `emission_strength`; non-zero makes the
+    /// surface a light.
     pub emission: Vec3,
+    /// Multiplies `emission` (glTF's `KHR_materials_emissive_strength`); 1 by default.
+    pub emission_strength: f32,
+    /// `Pbr`: 0 a non-metal, 1 a metal of reflectance `base_color`; linear in between.
+    pub metallic: f32,
+    /// `Pbr`: the share of the non-metal's diffuse base replaced by rough glass.
+    pub transmission: f32,
+    /// Coverage in [0, 1], used as `alpha_mode` says (1 by default).
+    pub alpha: f32,
+    pub alpha_mode: AlphaMode,
+    /// `AlphaMode::Mask`: covered where alpha ≥ this (glTF's default 0.5).
+    pub alpha_cutoff: f32,
+    /// glTF's `doubleSided`; kept for the file's sake: gridlight shades both sides.
+    pub double_sided: bool,
+    /// `Pbr`: asset path of a linear texture whose blue channel multiplies `metallic` and
+    /// green channel `roughness` (glTF's `metallicRoughnessTexture`).
+    pub metallic_roughness_texture: Option<String>,
+    /// `Pbr`: asset path of a tangent-space normal map, and its xy scale.
+    pub normal_texture: Option<String>,
+    pub normal_scale: f32,
+    /// `Pbr`: asset path of an sRGB texture multiplying `emission`.
+    pub emissive_texture: Option<String>,
 }
 
 impl Material {
@@ -207,8 +247,45 @@ impl Material {
             roughness: 1.0,
             ior: 1.5,
             emission: Vec3::ZERO,
+            emission_strength: 1.0,
+            metallic: 0.0,
+            transmission: 0.0,
+            alpha: 1.0,
+            alpha_mode: AlphaMode::Opaque,
+            alpha_cutoff: 0.5,
+            double_sided: true,
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+            emissive_texture: None,
         }
     }
+
+    /// A glTF metallic-roughness material with these factors and no maps.
+    pub fn pbr(name: &str, base_color: Vec3, metallic: f32, roughness: f32) -> Self {
+        Self { kind: MaterialKind::Pbr, metallic, roughness, ..Self::diffuse(name, base_color) }
+    }
+
+    /// Every texture the material is rendered with: its asset path and how its texels
+    /// are read. The normal and emissive maps are not rendered yet, so not listed.
+    pub fn textures(&self) -> impl Iterator<Item = (&str, TextureUse)> + '_ {
+        let pbr = self.kind == MaterialKind::Pbr;
+        [
+            (self.base_color_texture.as_deref(), TextureUse::Color),
+            (self.metallic_roughness_texture.as_deref().filter(|_| pbr), TextureUse::Data),
+        ]
+        .into_iter()
+        .filter_map(|(path, usage)| Some((path?, usage)))
+    }
+}
+
+/// How a texture's 8-bit codes are read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TextureUse {
+    /// sRGB-encoded colour (base colour).
+    Color,
+    /// Linear data, code / 255 (glTF's metallic-roughness texture).
+    Data,
 }
 
 /// A light that is not emissive geometry.

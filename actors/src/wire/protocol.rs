@@ -125,7 +125,10 @@ pub use crate::scene::asset_store::{AssetEntry, AssetHash};
 /// 10: every `Job` names its samples per pixel (`MasterMsg::Job::spp`): the scheduler sizes
 ///    jobs to the grid, the master's cost per result and its link (`scheduler::job_size`).
 /// 11: `Geometry::Gltf` (glTF 2.0 meshes); an older worker cannot decode such a state.
-pub const PROTOCOL_VERSION: u32 = 11;
+/// 12: `MaterialKind::Pbr` (glTF metallic-roughness) and the material fields it needs
+///    (metallic, transmission, emission strength, alpha and its mode, maps): every
+///    material has more positional fields, so no older worker decodes a newer state.
+pub const PROTOCOL_VERSION: u32 = 12;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;

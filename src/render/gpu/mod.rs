@@ -100,9 +100,10 @@ impl GpuTracer {
         self.ctx.adapter_info.device_type == wgpu::DeviceType::Cpu
     }
 
-    /// Uploads `scene` (its BVHs, materials, lights, environment, textures).
-    pub fn upload(&self, scene: &RenderScene) -> GpuScene {
-        let packed = pack::pack(scene);
+    /// Uploads `scene` (its BVHs, materials, lights, environment, textures); refuses a
+    /// scene with a material the WGSL tracer does not render (`pack::PackError`).
+    pub fn upload(&self, scene: &RenderScene) -> Result<GpuScene, pack::PackError> {
+        let packed = pack::pack(scene)?;
         let device = &self.ctx.device;
         let storage = |label: &str, contents: &[u8]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -111,13 +112,13 @@ impl GpuTracer {
                 usage: wgpu::BufferUsages::STORAGE,
             })
         };
-        GpuScene {
+        Ok(GpuScene {
             params: packed.params,
             words: storage("trace scene", bytemuck::cast_slice(&packed.words)),
             texels: storage("trace texels", bytemuck::cast_slice(&packed.texels)),
             seed: scene.state().seed,
             version: scene.state().version,
-        }
+        })
     }
 
     /// Renders every batch's pixels (`out` is cleared and filled in batch, then pixel

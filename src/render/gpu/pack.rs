@@ -80,13 +80,27 @@ impl Words {
     }
 }
 
-fn kind_code(kind: MaterialKind) -> u32 {
+/// The kind's code in `material.wgsl`; `None` for the kinds the WGSL tracer lacks.
+fn kind_code(kind: MaterialKind) -> Option<u32> {
     match kind {
-        MaterialKind::Diffuse => 0,
-        MaterialKind::Conductor => 1,
-        MaterialKind::Glossy => 2,
-        MaterialKind::Dielectric => 3,
+        MaterialKind::Diffuse => Some(0),
+        MaterialKind::Conductor => Some(1),
+        MaterialKind::Glossy => Some(2),
+        MaterialKind::Dielectric => Some(3),
+        MaterialKind::Pbr => None,
     }
+}
+
+/// Why a scene cannot be packed for the GPU tracer.
+#[derive(Debug, thiserror::Error)]
+pub enum PackError {
+    /// The WGSL tracer has no glTF metallic-roughness BSDF yet: it refuses rather than
+    /// render such a material as something else.
+    #[error(
+        "material `{material}` is a glTF metallic-roughness (pbr) material, which the GPU \
+         tracer does not render yet: render this scene on the CPU"
+    )]
+    UnsupportedMaterial { material: String },
 }
 
 fn distribution(d: &Distribution1D) -> impl Iterator<Item = u32> + '_ {
@@ -95,8 +109,12 @@ fn distribution(d: &Distribution1D) -> impl Iterator<Item = u32> + '_ {
         .chain(d.cdf.iter().chain(&d.func).map(|f| f.to_bits()))
 }
 
-/// Packs `scene` for the trace pass.
-pub fn pack(scene: &RenderScene) -> PackedScene {
+/// Packs `scene` for the trace pass; refuses a material kind the WGSL tracer lacks.
+pub fn pack(scene: &RenderScene) -> Result<PackedScene, PackError> {
+    if let Some(i) = scene.materials.iter().position(|m| kind_code(m.kind).is_none()) {
+        let material = scene.state().materials.get(i).map_or("?", |m| &m.name).to_owned();
+        return Err(PackError::UnsupportedMaterial { material });
+    }
     let state = scene.state();
     let mut p = Params::default();
     let mut w = Words::default();
@@ -144,7 +162,7 @@ pub fn pack(scene: &RenderScene) -> PackedScene {
         };
         let f = |x: f32| x.to_bits();
         materials.extend_from_slice(&[
-            kind_code(m.kind),
+            kind_code(m.kind).unwrap_or_default(),
             offset,
             tw,
             th,
@@ -233,5 +251,22 @@ pub fn pack(scene: &RenderScene) -> PackedScene {
     if texels.is_empty() {
         texels.extend_from_slice(&[0.0; 4]);
     }
-    PackedScene { params: p, words: w.0, texels }
+    Ok(PackedScene { params: p, words: w.0, texels })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::testscenes::furnace;
+    use gridlight_actors::state::Material;
+
+    #[test]
+    fn a_pbr_material_is_refused_by_name_and_the_old_kinds_pack() {
+        let (assets, state) = furnace(Material::pbr("brass", Vec3::ONE, 1.0, 0.2), Vec3::ONE, 4, 1);
+        let scene = RenderScene::new(assets, &state).unwrap();
+        let err = pack(&scene).err().expect("a pbr material must be refused");
+        assert!(err.to_string().contains("`brass`"), "{err}");
+        let (assets, state) = furnace(Material::diffuse("white", Vec3::ONE), Vec3::ONE, 4, 1);
+        assert!(pack(&RenderScene::new(assets, &state).unwrap()).is_ok());
+    }
 }

@@ -6,7 +6,6 @@ use glam::{Vec2, Vec3};
 
 use super::nee::{next_event, ShadowRay};
 use super::{MIN_ALBEDO, RR_START_DEPTH};
-use crate::render::bsdf::Bsdf;
 use crate::render::isa::{Cpu, Isa};
 use crate::render::lights::AreaLight;
 use crate::render::microfacet::Frame;
@@ -75,8 +74,7 @@ fn resolve<'a>(
     let w = 1.0 - u - v;
     let ng = scene.tlas.geometric_normal(&hit);
     // Vertex data is read only where it can change the result.
-    let idx =
-        (!leaf.flat || material.texture.is_some()).then(|| mesh.indices[leaf.original as usize]);
+    let idx = (!leaf.flat || material.textured()).then(|| mesh.indices[leaf.original as usize]);
     let mut ns = match idx {
         Some(idx) if !leaf.flat => {
             let [a, b, c] = idx.map(|i| mesh.normals[i as usize]);
@@ -88,7 +86,7 @@ fn resolve<'a>(
         ns = -ns;
     }
     let uv = match idx {
-        Some(idx) if material.texture.is_some() && !mesh.uvs.is_empty() => {
+        Some(idx) if material.textured() && !mesh.uvs.is_empty() => {
             let [a, b, c] = idx.map(|i| mesh.uvs[i as usize]);
             a * w + b * u + c * v
         }
@@ -267,7 +265,7 @@ pub(in crate::render) fn scatter(
 ) -> (bool, Option<ShadowRay>) {
     let material = surface.material;
     let wo_world = -*d;
-    let bsdf = Bsdf::new(material.kind, albedo, material.roughness, material.ior);
+    let bsdf = material.bsdf(albedo, surface.uv);
     let (mut ng, mut ns) = (surface.ng, surface.ns);
     if bsdf.two_sided() && ng.dot(wo_world) < 0.0 {
         ng = -ng;

@@ -115,23 +115,31 @@ mod tests {
             let why = format!("the CPU lacks {}, so that build was not checked", build.name());
             crate::testing::skip(test, crate::testing::Missing::CpuFeature, &why);
         }
-        // The last case textures the walls (uvs 0..1 reach both ends of the texel wrap).
+        // (kind, roughness, metallic, transmission, textured). Textured cases texture the
+        // walls (uvs 0..1 reach both ends of the texel wrap). The glTF cases cover its
+        // plastic, a half metal, the smooth plastic (a delta layer over a diffuse base),
+        // glass mixed in, and a textured mix.
         let kinds = [
-            (MaterialKind::Diffuse, 1.0, false),
-            (MaterialKind::Conductor, 0.3, false),
-            (MaterialKind::Glossy, 0.2, false),
-            (MaterialKind::Dielectric, 0.0, false),
-            (MaterialKind::Dielectric, 0.4, false),
-            (MaterialKind::Diffuse, 1.0, true),
+            (MaterialKind::Diffuse, 1.0, 0.0, 0.0, false),
+            (MaterialKind::Conductor, 0.3, 0.0, 0.0, false),
+            (MaterialKind::Glossy, 0.2, 0.0, 0.0, false),
+            (MaterialKind::Dielectric, 0.0, 0.0, 0.0, false),
+            (MaterialKind::Dielectric, 0.4, 0.0, 0.0, false),
+            (MaterialKind::Diffuse, 1.0, 0.0, 0.0, true),
+            (MaterialKind::Pbr, 0.4, 0.5, 0.0, false),
+            (MaterialKind::Pbr, 0.0, 0.0, 0.0, false),
+            (MaterialKind::Pbr, 0.3, 0.2, 0.6, true),
         ];
-        // Diffuse and glossy vertices take the stream kernel's vector stage (the others
-        // their lane's one-path step): lit by the box's area light alone, its light
-        // samples are vector code; with an environment too, drawn lane by lane.
+        // Diffuse and glossy vertices take the stream kernel's vector stage (the others,
+        // glTF's included, their lane's one-path step): lit by the box's area light alone,
+        // its light samples are vector code; with an environment too, drawn lane by lane.
         let cases = kinds.into_iter().flat_map(|k| [(k, true), (k, false)]);
-        for ((kind, roughness, textured), environment) in cases {
+        for ((kind, roughness, metallic, transmission, textured), environment) in cases {
             let (assets, mut state) = testscenes::cornell_box(40, 30);
             state.materials[0].kind = kind;
             state.materials[0].roughness = roughness;
+            state.materials[0].metallic = metallic;
+            state.materials[0].transmission = transmission;
             let mut assets = (*assets).clone();
             if textured {
                 let texels = (0..15).map(|i| Vec3::new(0.2, (i % 4) as f32 / 4.0, 0.7)).collect();

@@ -1,59 +1,30 @@
-//! glTF metallic-roughness materials → the closest existing gridlight material kind.
+//! glTF metallic-roughness materials → gridlight's [`MaterialKind::Pbr`], which renders the
+//! specification's BRDF (`render::pbr`): base colour (factor × texture), metallic and
+//! roughness (factors × the metallic-roughness texture's B and G), `KHR_materials_ior`,
+//! `KHR_materials_transmission`'s factor, `emissiveFactor` ×
+//! `KHR_materials_emissive_strength`. Alpha (the base colour factor's), its mode and
+//! cutoff, `doubleSided` and the normal and emissive maps are kept in the material too.
 //!
-//! gridlight does not render glTF's BRDF yet (a later step), so each material becomes:
-//! - `KHR_materials_transmission` factor ≥ 0.5 → **dielectric**, tinted by the base
-//!   colour, with `KHR_materials_ior` (1.5 by default) and the roughness factor;
-//! - else metallic factor ≥ 0.5 → **conductor** with the base colour as reflectance;
-//! - else roughness < 0.9 → **glossy** (diffuse base under a clear coat of the material's
-//!   IOR: glTF's non-metal is exactly a diffuse base with an F0 = 0.04 dielectric layer);
-//! - else **diffuse** (at such roughness the coat's lobe is nearly Lambertian and only
-//!   adds noise).
-//!
-//! `baseColorTexture` becomes the albedo texture (not on dielectrics, as for MTL);
-//! `emissiveFactor × KHR_materials_emissive_strength` is the emission. What is not rendered
-//! (normal, occlusion, metallic-roughness and emissive maps, alpha modes, texture sets
-//! other than 0, wrap modes other than repeat, factors between the kinds) is warned about
-//! once per feature. The parameters the later PBR step needs are kept in [`Pbr`].
+//! What is not rendered (normal, occlusion and emissive maps, the transmission texture,
+//! alpha modes, texture sets other than 0, wrap modes other than repeat) is warned about
+//! once per feature.
 
 use glam::Vec3;
-use gltf::material::AlphaMode;
 use gltf::texture::WrappingMode;
-use gridlight_actors::state::{Material, MaterialKind};
+use gridlight_actors::state::{AlphaMode, Material, MaterialKind};
 
 use super::{image_key, Warnings};
 
-/// Transmission and metallic factors at or above this pick the dielectric / conductor kind.
-const KIND_THRESHOLD: f32 = 0.5;
-/// Non-metals at or above this roughness are diffuse.
-const DIFFUSE_ROUGHNESS: f32 = 0.9;
 /// glTF's default index of refraction (F0 = 0.04).
 pub const DEFAULT_IOR: f32 = 1.5;
 
-/// One glTF material: what gridlight renders now, and the file's parameters.
+/// One glTF material as gridlight renders it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GltfMaterial {
     /// The glTF name (or `material{index}` for unnamed ones).
     pub name: String,
-    /// The approximation rendered today; its name is [`GltfMaterial::name`].
+    /// A [`MaterialKind::Pbr`] material; its name is [`GltfMaterial::name`].
     pub material: Material,
-    pub pbr: Pbr,
-}
-
-/// glTF metallic-roughness parameters, kept for the PBR step; textures as texture keys.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Pbr {
-    /// Linear RGBA.
-    pub base_color_factor: [f32; 4],
-    pub metallic: f32,
-    pub roughness: f32,
-    pub transmission: f32,
-    pub ior: f32,
-    pub metallic_roughness_texture: Option<String>,
-    pub normal_texture: Option<String>,
-    pub occlusion_texture: Option<String>,
-    pub emissive_texture: Option<String>,
-    pub alpha_mode: AlphaMode,
-    pub double_sided: bool,
 }
 
 /// Converts material `m` of the glTF file at asset path `asset`.
@@ -61,56 +32,43 @@ pub fn convert(m: &gltf::Material, asset: &str, warnings: &mut Warnings) -> Gltf
     let name =
         m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), str::to_owned);
     let pbr = m.pbr_metallic_roughness();
-    let base_color_texture = pbr.base_color_texture().map(|i| texture_key(asset, &i, warnings));
     let [r, g, b, alpha] = pbr.base_color_factor();
     let clean = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
-    let metallic = clean(pbr.metallic_factor());
-    let roughness = clean(pbr.roughness_factor());
-    let transmission = m.transmission().map_or(0.0, |t| clean(t.transmission_factor()));
-    let ior = m.ior().filter(|n| (1.0..=4.0).contains(n)).unwrap_or(DEFAULT_IOR);
-    let emission = Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
+    let emission = Vec3::from(m.emissive_factor());
     let emission = if emission.is_finite() { emission.max(Vec3::ZERO) } else { Vec3::ZERO };
-
-    let pbr_params = Pbr {
-        base_color_factor: [clean(r), clean(g), clean(b), clean(alpha)],
-        metallic,
-        roughness,
-        transmission,
-        ior,
-        metallic_roughness_texture: pbr
-            .metallic_roughness_texture()
-            .map(|i| image_key(asset, &i.texture().source())),
-        normal_texture: m.normal_texture().map(|t| image_key(asset, &t.texture().source())),
-        occlusion_texture: m.occlusion_texture().map(|t| image_key(asset, &t.texture().source())),
-        emissive_texture: m.emissive_texture().map(|i| image_key(asset, &i.texture().source())),
-        alpha_mode: m.alpha_mode(),
-        double_sided: m.double_sided(),
+    let strength = m.emissive_strength().filter(|s| s.is_finite() && *s >= 0.0).unwrap_or(1.0);
+    let (alpha_mode, alpha_cutoff) = match m.alpha_mode() {
+        gltf::material::AlphaMode::Opaque => (AlphaMode::Opaque, 0.5),
+        gltf::material::AlphaMode::Mask => {
+            (AlphaMode::Mask, clean(m.alpha_cutoff().unwrap_or(0.5)))
+        }
+        gltf::material::AlphaMode::Blend => (AlphaMode::Blend, 0.5),
     };
-    warn_unrendered(&pbr_params, m, warnings);
-
-    let kind = if transmission >= KIND_THRESHOLD {
-        MaterialKind::Dielectric
-    } else if metallic >= KIND_THRESHOLD {
-        MaterialKind::Conductor
-    } else if roughness < DIFFUSE_ROUGHNESS {
-        MaterialKind::Glossy
-    } else {
-        MaterialKind::Diffuse
-    };
+    let normal = m.normal_texture();
     let material = Material {
         name: name.clone(),
-        kind,
+        kind: MaterialKind::Pbr,
         base_color: Vec3::new(clean(r), clean(g), clean(b)),
-        base_color_texture: if kind == MaterialKind::Dielectric {
-            None
-        } else {
-            base_color_texture
-        },
-        roughness,
-        ior,
+        base_color_texture: pbr.base_color_texture().map(|i| texture_key(asset, &i, warnings)),
+        roughness: clean(pbr.roughness_factor()),
+        ior: m.ior().filter(|n| (1.0..=4.0).contains(n)).unwrap_or(DEFAULT_IOR),
         emission,
+        emission_strength: strength,
+        metallic: clean(pbr.metallic_factor()),
+        transmission: m.transmission().map_or(0.0, |t| clean(t.transmission_factor())),
+        alpha: clean(alpha),
+        alpha_mode,
+        alpha_cutoff,
+        double_sided: m.double_sided(),
+        metallic_roughness_texture: pbr
+            .metallic_roughness_texture()
+            .map(|i| texture_key(asset, &i, warnings)),
+        normal_texture: normal.as_ref().map(|t| image_key(asset, &t.texture().source())),
+        normal_scale: normal.as_ref().map_or(1.0, |t| t.scale()),
+        emissive_texture: m.emissive_texture().map(|i| image_key(asset, &i.texture().source())),
     };
-    GltfMaterial { name, material, pbr: pbr_params }
+    warn_unrendered(&material, m, warnings);
+    GltfMaterial { name, material }
 }
 
 /// The texture key of a texture reference, warning about what the lookup ignores.
@@ -125,14 +83,10 @@ fn texture_key(asset: &str, info: &gltf::texture::Info, warnings: &mut Warnings)
     image_key(asset, &info.texture().source())
 }
 
-fn warn_unrendered(p: &Pbr, m: &gltf::Material, warnings: &mut Warnings) {
+fn warn_unrendered(p: &Material, m: &gltf::Material, warnings: &mut Warnings) {
     let pairs = [
         (p.normal_texture.is_some(), "normal maps (normalTexture): not rendered"),
-        (p.occlusion_texture.is_some(), "occlusion maps (occlusionTexture): not rendered"),
-        (
-            p.metallic_roughness_texture.is_some(),
-            "metallicRoughnessTexture: not rendered (the metallic and roughness factors are used)",
-        ),
+        (m.occlusion_texture().is_some(), "occlusion maps (occlusionTexture): not rendered"),
         (
             p.emissive_texture.is_some(),
             "emissiveTexture: not rendered (the emissive factor is used uniformly)",
@@ -143,14 +97,6 @@ fn warn_unrendered(p: &Pbr, m: &gltf::Material, warnings: &mut Warnings) {
         ),
         (p.alpha_mode == AlphaMode::Mask, "alphaMode MASK: drawn opaque"),
         (p.alpha_mode == AlphaMode::Blend, "alphaMode BLEND: drawn opaque"),
-        (
-            p.metallic > 0.0 && p.metallic < 1.0,
-            "metallic factors between 0 and 1: rounded to metal or non-metal",
-        ),
-        (
-            p.transmission > 0.0 && p.transmission < 1.0,
-            "transmission factors between 0 and 1: rounded to glass or opaque",
-        ),
     ];
     for (used, warning) in pairs {
         if used {

@@ -1,13 +1,13 @@
 //! glTF 2.0 files (`.gltf` with its buffers and images, or a self-contained `.glb`) read
 //! into what the OBJ path produces: one [`Mesh`] with a material slot per glTF material,
-//! gridlight [`Material`]s, decoded albedo textures and the list of companion files a
+//! gridlight [`Material`]s, decoded textures (base colour, metallic-roughness) and the list of companion files a
 //! worker must fetch. The view ([`view`]) turns the file's camera and lights into a
 //! scene description, so that `gridlight render model.glb` needs no TOML.
 //!
 //! - Everything is read through the [`AssetResolver`] (external buffers and images are
 //!   assets beside the glTF file), so the master and a worker's cache build the same data.
 //! - [`geometry`]: the default scene's node hierarchy, flattened into one mesh.
-//! - [`material`]: metallic-roughness → the closest existing material kind.
+//! - [`material`]: metallic-roughness → gridlight's `MaterialKind::Pbr`.
 //! - Embedded images (`data:` URIs, GLB buffer views) have no file of their own; their
 //!   texture key is `FILE#imageN` ([`embedded_image`]) and they travel inside the file.
 //! - What the file asks that gridlight does not render yet (normal maps, alpha modes,
@@ -26,6 +26,7 @@ use std::path::PathBuf;
 
 use base64::Engine as _;
 use gltf::json::validation::Validate;
+use gridlight_actors::state::TextureUse;
 
 use super::error::AssetError;
 use super::search::{check_asset_path, sibling_asset, AssetBytes, AssetResolver};
@@ -71,8 +72,8 @@ pub struct GltfData {
     /// `materials[i]`, the last slot holds primitives without a material.
     pub mesh: Mesh,
     pub materials: Vec<GltfMaterial>,
-    /// Decoded base-colour textures, keyed as the materials name them.
-    pub textures: Vec<(String, Texture)>,
+    /// Decoded textures, keyed as the materials name them, with how each is read.
+    pub textures: Vec<(String, TextureUse, Texture)>,
     /// Asset paths of the external buffers and images the file names and that were read.
     pub companions: Vec<String>,
     /// Camera instances in node order.
@@ -147,12 +148,24 @@ fn read_bytes(
     let mut textures = Vec::new();
     for image in d.doc.images() {
         let key = image_key(asset, &image);
-        if materials.iter().any(|m| m.material.base_color_texture.as_ref() == Some(&key)) {
-            let texture = decode_image(asset, &image, &d, resolver)?;
-            if embedded_image(&key).is_none() && !d.companions.contains(&key) {
-                d.companions.push(key.clone());
-            }
-            textures.push((key, texture));
+        // Each use once: an image may be a colour and a data texture both.
+        let mut uses: Vec<TextureUse> = materials
+            .iter()
+            .flat_map(|m| m.material.textures())
+            .filter(|(path, _)| *path == key)
+            .map(|(_, usage)| usage)
+            .collect();
+        uses.sort_by_key(|u| *u as u8);
+        uses.dedup();
+        if uses.is_empty() {
+            continue;
+        }
+        let decoded = decode_image(asset, &image, &d, resolver)?;
+        if embedded_image(&key).is_none() && !d.companions.contains(&key) {
+            d.companions.push(key.clone());
+        }
+        for usage in uses {
+            textures.push((key.clone(), usage, super::loader::texture_of(&decoded, usage)));
         }
     }
     let placed = geometry::flatten(&d.doc, &d.buffers, &mut d.warnings, materials.len() as u32)?;
@@ -286,13 +299,13 @@ pub(crate) fn image_key(asset: &str, image: &gltf::Image) -> String {
     }
 }
 
-/// Decodes one image as an sRGB albedo texture.
+/// Decodes one image.
 fn decode_image(
     asset: &str,
     image: &gltf::Image,
     d: &Document,
     resolver: &dyn AssetResolver,
-) -> Result<Texture, GltfError> {
+) -> Result<image::DynamicImage, GltfError> {
     let element = format!("images[{}]", image.index());
     let (bytes, name): (Cow<[u8]>, PathBuf) = match image.source() {
         gltf::image::Source::View { view, mime_type } => {
@@ -307,10 +320,9 @@ fn decode_image(
             (Cow::Owned(data), PathBuf::from(name))
         }
     };
-    let decoded = AssetBytes { file: name, bytes }
+    AssetBytes { file: name, bytes }
         .decode_image()
-        .map_err(|e| GltfError::Asset { element: element.clone(), source: Box::new(e) })?;
-    Ok(super::loader::albedo_texture(&decoded))
+        .map_err(|e| GltfError::Asset { element: element.clone(), source: Box::new(e) })
 }
 
 /// A file extension for a MIME type, so that the image decoder knows the format.

@@ -209,7 +209,7 @@ fn punctual_lights_become_point_spot_and_sun() {
 }
 
 #[test]
-fn materials_map_to_the_closest_kind() {
+fn materials_map_to_pbr_with_their_factors() {
     let mut f = quad_scene(2);
     for m in [
         json!({ "name": "gold", "pbrMetallicRoughness":
@@ -228,14 +228,18 @@ fn materials_map_to_the_closest_kind() {
         f.push("materials", m);
     }
     let data = read_glb(&f).expect("loads");
-    let kinds: Vec<MaterialKind> = data.materials.iter().map(|m| m.material.kind).collect();
-    use MaterialKind::*;
-    // glTF's default metallic factor is 1: the lamp is a (glowing) metal.
-    assert_eq!(kinds, [Conductor, Glossy, Diffuse, Dielectric, Conductor]);
-    assert_eq!(data.materials[0].material.base_color, Vec3::new(1.0, 0.8, 0.3));
-    assert_eq!(data.materials[0].pbr.metallic, 1.0);
-    assert_eq!(data.materials[3].material.ior, 1.33);
-    assert_eq!(data.materials[4].material.emission, Vec3::new(4.0, 2.0, 0.0));
+    assert!(data.materials.iter().all(|m| m.material.kind == MaterialKind::Pbr));
+    let m = |i: usize| &data.materials[i].material;
+    let factors: Vec<(f32, f32, f32)> =
+        (0..5).map(|i| (m(i).metallic, m(i).roughness, m(i).transmission)).collect();
+    // glTF's default metallic and roughness factors are 1: the lamp is a (glowing) metal.
+    assert_eq!(
+        factors,
+        [(1.0, 0.2, 0.0), (0.0, 0.4, 0.0), (0.0, 1.0, 0.0), (1.0, 1.0, 1.0), (1.0, 1.0, 0.0)]
+    );
+    assert_eq!(m(0).base_color, Vec3::new(1.0, 0.8, 0.3));
+    assert_eq!(m(3).ior, 1.33);
+    assert_eq!((m(4).emission, m(4).emission_strength), (Vec3::new(1.0, 0.5, 0.0), 4.0));
     assert_eq!(data.mesh.slot_count, 6, "five materials plus the no-material slot");
     assert_eq!(data.mesh.slots, [5, 5]);
 }
@@ -265,7 +269,8 @@ fn textures_embedded_in_a_glb_or_a_data_uri_or_beside_the_file() {
     let key = data.materials[0].material.base_color_texture.clone().expect("textured");
     assert_eq!(key, "v.glb#image0");
     assert_eq!(embedded_image(&key), Some(("v.glb", 0)));
-    let (_, texture) = &data.textures[0];
+    let (_, usage, texture) = &data.textures[0];
+    assert_eq!(*usage, TextureUse::Color);
     assert_eq!((texture.width, texture.height), (2, 1));
     assert_eq!(texture.texels.get(0), Vec3::X, "red, linearised");
     assert!(data.companions.is_empty());
@@ -283,7 +288,7 @@ fn textures_embedded_in_a_glb_or_a_data_uri_or_beside_the_file() {
     f.write_gltf(&sub, "e", Bin::File);
     let data = read_gltf("m/e.gltf", &resolver).expect("external files");
     assert_eq!(data.textures[0].0, "m/tex a.png");
-    assert_eq!(data.textures[0].1.texels.get(1), Vec3::Z);
+    assert_eq!(data.textures[0].2.texels.get(1), Vec3::Z);
     assert_eq!(data.companions, ["m/e.bin", "m/tex a.png"]);
 }
 
@@ -307,16 +312,14 @@ fn unsupported_features_are_each_warned_about_once() {
     f.uses("KHR_texture_transform");
     f.json["extensionsRequired"] = json!(["KHR_texture_transform"]);
     let warnings = read_glb(&f).expect("loads").warnings.into_vec();
-    for feature in [
-        "KHR_materials_clearcoat",
-        "KHR_texture_transform",
-        "normal maps",
-        "metallicRoughnessTexture",
-        "alphaMode BLEND",
-    ] {
+    for feature in
+        ["KHR_materials_clearcoat", "KHR_texture_transform", "normal maps", "alphaMode BLEND"]
+    {
         let n = warnings.iter().filter(|w| w.contains(feature)).count();
         assert_eq!(n, 1, "{feature}: {warnings:#?}");
     }
+    // Rendered now: no warning.
+    assert!(!warnings.iter().any(|w| w.contains("metallicRoughnessTexture")), "{warnings:#?}");
 }
 
 #[test]

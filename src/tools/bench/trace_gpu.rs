@@ -49,7 +49,7 @@ pub fn bench_scene_gpu(
 ) -> anyhow::Result<GpuTraceReport> {
     let state = settings.applied_to(state);
     let scene = RenderScene::new(assets, &state)?;
-    let uploaded = tracer.upload(&scene);
+    let uploaded = tracer.upload(&scene)?;
     let pixels: Vec<u32> = (0..state.resolution.pixels() as u32).collect();
     let mut out = Vec::with_capacity(pixels.len());
     let warm = [PixelBatch { frame: u64::MAX, pixels: &pixels[..pixels.len().min(64)] }];
