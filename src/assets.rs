@@ -208,7 +208,8 @@ pub struct Assets {
     pub meshes: HashMap<Geometry, Arc<Mesh>>,
     /// Colour textures (albedo) by asset path (sRGB codes, read as linear RGB).
     pub textures: HashMap<String, Arc<Texture>>,
-    /// Data textures (glTF's metallic-roughness) by asset path (linear codes).
+    /// Data textures (glTF's metallic-roughness and normal maps) by asset path (linear
+    /// codes).
     pub data_textures: HashMap<String, Arc<Texture>>,
     /// Equirectangular environment maps by asset path (linear RGB radiance).
     pub environments: HashMap<String, Arc<Texture>>,
@@ -228,7 +229,7 @@ impl Assets {
     pub fn insert_texture(&mut self, path: String, usage: TextureUse, texture: Arc<Texture>) {
         let map = match usage {
             TextureUse::Color => &mut self.textures,
-            TextureUse::Data => &mut self.data_textures,
+            TextureUse::Data | TextureUse::Normal => &mut self.data_textures,
         };
         map.insert(path, texture);
     }
@@ -236,7 +237,7 @@ impl Assets {
     fn texture_map(&self, usage: TextureUse) -> &HashMap<String, Arc<Texture>> {
         match usage {
             TextureUse::Color => &self.textures,
-            TextureUse::Data => &self.data_textures,
+            TextureUse::Data | TextureUse::Normal => &self.data_textures,
         }
     }
 }

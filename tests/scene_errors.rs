@@ -133,3 +133,46 @@ fn unreadable_scene_file_names_the_file() {
     let err = scene::load(&missing, &AssetSearchPath::from_dirs(vec![])).expect_err("missing");
     assert!(err.to_string().contains("/nonexistent/scene.toml"), "{err}");
 }
+
+#[test]
+fn pbr_keys_load_and_pbr_only_keys_need_the_pbr_kind() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = dir.path().join("assets/mr.png");
+    std::fs::create_dir_all(png.parent().expect("parent")).expect("mkdir");
+    image::RgbImage::from_pixel(1, 1, image::Rgb([0, 51, 255])).save(&png).expect("png");
+    let brass = "[[materials]]\nname = \"white\"\nkind = \"pbr\"\nmetallic = 1.0\n\
+                 roughness = 0.5\ntransmission = 0.25\nemission = [1, 1, 1]\n\
+                 emission_strength = 3.0\nmetallic_roughness_map = \"mr.png\"\n";
+    let path = dir.path().join("ok.toml");
+    std::fs::write(&path, format!("{CAMERA}{brass}{CUBE}")).expect("write");
+    let loaded = scene::load(&path, &AssetSearchPath::new(&[], None, Some(&path))).expect("loads");
+    let m = &loaded.state.materials[0];
+    assert_eq!(m.kind, gridlight_actors::state::MaterialKind::Pbr);
+    assert_eq!((m.metallic, m.roughness, m.transmission), (1.0, 0.5, 0.25));
+    assert_eq!(m.emission_strength, 3.0);
+    let map = loaded.assets.data_textures.get("mr.png").expect("the map is loaded as data");
+    // Linear: G 51 → roughness × 0.2, B 255 → metallic × 1.
+    assert!((map.texels.get(0) - glam::Vec3::new(0.0, 0.2, 1.0)).length() < 1e-6);
+
+    let metal_diffuse = "[[materials]]\nname = \"white\"\nmetallic = 1.0\n";
+    assert_names(
+        &format!("{CAMERA}{metal_diffuse}{CUBE}"),
+        &[],
+        "materials[0].metallic",
+        &["kind = \"pbr\""],
+    );
+    let too_metallic = "[[materials]]\nname = \"white\"\nkind = \"pbr\"\nmetallic = 1.5\n";
+    assert_names(
+        &format!("{CAMERA}{too_metallic}{CUBE}"),
+        &[],
+        "materials[0].metallic",
+        &["[0, 1]"],
+    );
+    let missing = "[[materials]]\nname = \"white\"\nkind = \"pbr\"\nnormal_map = \"n.png\"\n";
+    assert_names(
+        &format!("{CAMERA}{missing}{CUBE}"),
+        &[],
+        "materials[0].normal_map",
+        &["n.png", "not found"],
+    );
+}

@@ -9,7 +9,7 @@
 //! radiance, directly seen emission and the primary hit's G-buffer values.
 //!
 //! Modules: [`accel`] (BVHs), [`sampler`] (scrambled Sobol), [`camera`],
-//! [`bsdf`] and [`microfacet`] (materials), [`lights`] and [`envmap`] (emitters),
+//! [`bsdf`], [`microfacet`] and [`pbr`] (materials), [`lights`] and [`envmap`] (emitters),
 //! [`integrator`] (the path loop); [`gpu`] the same kernel in WGSL for GPU workers.
 
 pub mod accel;
@@ -23,6 +23,7 @@ pub mod isa;
 pub mod lanes;
 pub mod lights;
 pub mod microfacet;
+pub mod normal_map;
 pub mod pbr;
 pub mod sampler;
 mod stream;
@@ -116,6 +117,9 @@ pub struct MaterialData {
     pub transmission: f32,
     /// `Pbr` only: B multiplies `metallic`, G `roughness` (linear).
     pub metallic_roughness: Option<Arc<Texture>>,
+    /// `Pbr` only: a tangent-space normal map, its xy scaled by `normal_scale`.
+    pub normal_map: Option<Arc<Texture>>,
+    pub normal_scale: f32,
 }
 
 impl MaterialData {
@@ -127,7 +131,7 @@ impl MaterialData {
     /// Whether a hit needs its texture coordinates.
     #[inline(always)]
     pub fn textured(&self) -> bool {
-        self.texture.is_some() || self.metallic_roughness.is_some()
+        self.texture.is_some() || self.metallic_roughness.is_some() || self.normal_map.is_some()
     }
 
     /// The scattering function at texture coordinates `uv`, of albedo `albedo`.
@@ -302,11 +306,12 @@ impl RenderScene {
                     && m.roughness.is_finite()
                     && m.ior.is_finite()
                     && unit(m.metallic)
-                    && unit(m.transmission);
+                    && unit(m.transmission)
+                    && m.normal_scale.is_finite();
                 if !ok {
                     return Err(RenderError::BadMaterial { material: m.name.clone() });
                 }
-                let (mut texture, mut metallic_roughness) = (None, None);
+                let (mut texture, mut metallic_roughness, mut normal_map) = (None, None, None);
                 for (path, usage) in m.textures() {
                     let tex = self.assets.texture(path, usage).ok_or_else(|| {
                         RenderError::MissingTexture { material: m.name.clone(), path: path.into() }
@@ -315,6 +320,7 @@ impl RenderScene {
                     match usage {
                         TextureUse::Color => texture = Some(tex.clone()),
                         TextureUse::Data => metallic_roughness = Some(tex.clone()),
+                        TextureUse::Normal => normal_map = Some(tex.clone()),
                     }
                 }
                 Ok(MaterialData {
@@ -327,6 +333,8 @@ impl RenderScene {
                     metallic: m.metallic,
                     transmission: m.transmission,
                     metallic_roughness,
+                    normal_map,
+                    normal_scale: m.normal_scale,
                 })
             })
             .collect()

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use glam::{EulerRot, Quat, Vec3};
 use gridlight_actors::state::{
     AlphaMode, Camera, Environment, Geometry, Light, Material, MaterialId, MaterialKind, Object,
-    RenderSettings, Resolution, SceneState, Transform,
+    RenderSettings, Resolution, SceneState, TextureUse, Transform,
 };
 
 use super::description::*;
@@ -72,7 +72,7 @@ pub(super) fn build_with(
                 b.invalid(format!("{key}.name"), format!("duplicate material name `{}`", m.name))
             );
         }
-        b.materials.push((material, format!("{key}.texture")));
+        b.materials.push((material, Origin::Table(key)));
     }
     let mut objects = Vec::with_capacity(file.objects.len());
     let mut mtl_ids: HashMap<String, Vec<MaterialId>> = HashMap::new();
@@ -114,12 +114,36 @@ pub(super) fn build_with(
     })
 }
 
+/// Where a material's textures were named, for errors: its own `[[materials]]` table
+/// (`materials[2]`, each map by its key), or a mesh file (the object's `mesh` key).
+enum Origin {
+    Table(String),
+    Mesh(String),
+}
+
+impl Origin {
+    /// The key that named the texture of this use.
+    fn key(&self, usage: TextureUse) -> String {
+        match self {
+            Self::Table(table) => {
+                let field = match usage {
+                    TextureUse::Color => "texture",
+                    TextureUse::Data => "metallic_roughness_map",
+                    TextureUse::Normal => "normal_map",
+                };
+                format!("{table}.{field}")
+            }
+            Self::Mesh(key) => key.clone(),
+        }
+    }
+}
+
 struct Builder<'a> {
     path: &'a Path,
     resolver: &'a dyn AssetResolver,
     assets: Assets,
-    /// The state's materials, each with the key its texture came from.
-    materials: Vec<(Material, String)>,
+    /// The state's materials, each with where its textures were named.
+    materials: Vec<(Material, Origin)>,
     /// A mesh file read before the build (see [`build_with`]).
     preloaded: Option<(String, MeshFile)>,
     /// What the scene asks that is not rendered, each once.
@@ -289,7 +313,6 @@ impl Builder<'_> {
             AlphaModeDesc::Blend => AlphaMode::Blend,
         };
         let unrendered = [
-            (m.normal_map.is_some(), "normal_map: not rendered yet"),
             (m.emissive_map.is_some(), "emissive_map: not rendered yet (emission is uniform)"),
             (alpha_mode != AlphaMode::Opaque, "alpha_mode mask and blend: drawn opaque"),
         ];
@@ -335,7 +358,7 @@ impl Builder<'_> {
     fn default_material(&mut self, names: &mut HashMap<String, MaterialId>) -> MaterialId {
         *names.entry(DEFAULT_MATERIAL.to_owned()).or_insert_with(|| {
             let material = Material::diffuse(DEFAULT_MATERIAL, Vec3::splat(0.8));
-            self.materials.push((material, String::new()));
+            self.materials.push((material, Origin::Mesh(String::new())));
             self.materials.len() as MaterialId - 1
         })
     }
@@ -419,7 +442,7 @@ impl Builder<'_> {
                     };
                     let mut ids = Vec::with_capacity(data.materials.len());
                     for m in data.materials {
-                        self.materials.push((m, mesh_key.clone()));
+                        self.materials.push((m, Origin::Mesh(mesh_key.clone())));
                         ids.push(self.materials.len() as MaterialId - 1);
                     }
                     mtl_ids.insert(mesh.clone(), ids);
@@ -600,14 +623,14 @@ impl Builder<'_> {
 
     /// Loads every material's textures; errors name the key the texture came from.
     fn load_textures(&mut self) -> Result<(), SceneError> {
-        for (material, key) in &self.materials {
+        for (material, origin) in &self.materials {
             for (path, usage) in material.textures() {
                 if self.assets.texture(path, usage).is_some() {
                     continue;
                 }
                 let texture = load_texture(path, usage, self.resolver).map_err(|err| {
                     let what = format!("material `{}`: texture `{path}`: {err}", material.name);
-                    SceneError::new(self.path, key.clone(), Problem::Invalid(what))
+                    SceneError::new(self.path, origin.key(usage), Problem::Invalid(what))
                 })?;
                 self.assets.insert_texture(path.to_owned(), usage, Arc::new(texture));
             }

@@ -197,7 +197,7 @@ pub struct MaterialDesc {
     pub transmission: Option<f32>,
     /// `pbr`: asset path of a linear map, B × `metallic`, G × `roughness`.
     pub metallic_roughness_map: Option<String>,
-    /// `pbr`: asset path of a tangent-space normal map (not rendered yet: a warning).
+    /// `pbr`: asset path of a tangent-space normal map (linear, +y up: glTF's, OpenGL's).
     pub normal_map: Option<String>,
     /// `pbr`: the normal map's xy scale; default 1.
     pub normal_scale: Option<f32>,

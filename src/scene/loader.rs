@@ -124,7 +124,7 @@ pub fn load_texture(
 pub fn texture_of(image: &image::DynamicImage, usage: TextureUse) -> Texture {
     match usage {
         TextureUse::Color => albedo_texture(image),
-        TextureUse::Data => {
+        TextureUse::Data | TextureUse::Normal => {
             let rgb = image.to_rgb8();
             let codes = rgb.pixels().map(|p| p.0).collect();
             Texture::unorm8(rgb.width(), rgb.height(), codes)

@@ -267,12 +267,13 @@ impl Material {
     }
 
     /// Every texture the material is rendered with: its asset path and how its texels
-    /// are read. The normal and emissive maps are not rendered yet, so not listed.
+    /// are read. The emissive map is not rendered yet, so not listed.
     pub fn textures(&self) -> impl Iterator<Item = (&str, TextureUse)> + '_ {
         let pbr = self.kind == MaterialKind::Pbr;
         [
             (self.base_color_texture.as_deref(), TextureUse::Color),
             (self.metallic_roughness_texture.as_deref().filter(|_| pbr), TextureUse::Data),
+            (self.normal_texture.as_deref().filter(|_| pbr), TextureUse::Normal),
         ]
         .into_iter()
         .filter_map(|(path, usage)| Some((path?, usage)))
@@ -286,6 +287,9 @@ pub enum TextureUse {
     Color,
     /// Linear data, code / 255 (glTF's metallic-roughness texture).
     Data,
+    /// A tangent-space normal map: linear data as `Data`, kept apart only for the
+    /// material that reads it.
+    Normal,
 }
 
 /// A light that is not emissive geometry.

@@ -264,7 +264,7 @@ mod tests {
     fn a_pbr_material_is_refused_by_name_and_the_old_kinds_pack() {
         let (assets, state) = furnace(Material::pbr("brass", Vec3::ONE, 1.0, 0.2), Vec3::ONE, 4, 1);
         let scene = RenderScene::new(assets, &state).unwrap();
-        let err = pack(&scene).err().expect("a pbr material must be refused");
+        let Err(err) = pack(&scene) else { panic!("a pbr material must be refused") };
         assert!(err.to_string().contains("`brass`"), "{err}");
         let (assets, state) = furnace(Material::diffuse("white", Vec3::ONE), Vec3::ONE, 4, 1);
         assert!(pack(&RenderScene::new(assets, &state).unwrap()).is_ok());

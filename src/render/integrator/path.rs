@@ -9,6 +9,7 @@ use super::{MIN_ALBEDO, RR_START_DEPTH};
 use crate::render::isa::{Cpu, Isa};
 use crate::render::lights::AreaLight;
 use crate::render::microfacet::Frame;
+use crate::render::normal_map::{bend, triangle_tangents};
 use crate::render::sampler::SampleStream;
 use crate::render::{MaterialData, PixelSample, RenderScene};
 
@@ -92,6 +93,15 @@ fn resolve<'a>(
         }
         _ => Vec2::ZERO,
     };
+    if let (Some(map), Some(idx)) = (&material.normal_map, idx) {
+        if !mesh.uvs.is_empty() {
+            let positions = idx.map(|i| mesh.positions[i as usize]);
+            let uvs = idx.map(|i| mesh.uvs[i as usize]);
+            if let Some(frame) = triangle_tangents(positions, uvs, &inst.object_to_world) {
+                ns = bend(map, material.normal_scale, uv, ns, ng, frame);
+            }
+        }
+    }
     Some(Hit::Surface(Surface { p: o + d * hit.t, ng, ns, uv, material, object: inst.object }))
 }
 

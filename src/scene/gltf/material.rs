@@ -3,11 +3,12 @@
 //! roughness (factors × the metallic-roughness texture's B and G), `KHR_materials_ior`,
 //! `KHR_materials_transmission`'s factor, `emissiveFactor` ×
 //! `KHR_materials_emissive_strength`. Alpha (the base colour factor's), its mode and
-//! cutoff, `doubleSided` and the normal and emissive maps are kept in the material too.
+//! cutoff, `doubleSided` and the emissive map are kept in the material too.
 //!
-//! What is not rendered (normal, occlusion and emissive maps, the transmission texture,
-//! alpha modes, texture sets other than 0, wrap modes other than repeat) is warned about
-//! once per feature.
+//! `normalTexture` is rendered too (`render::normal_map`), with tangents from each
+//! triangle's texture coordinates. What is not rendered (occlusion and emissive maps, the
+//! transmission texture, alpha modes, texture sets other than 0, wrap modes other than
+//! repeat) and the normal maps' tangents are warned about once per feature.
 
 use glam::Vec3;
 use gltf::texture::WrappingMode;
@@ -85,7 +86,11 @@ fn texture_key(asset: &str, info: &gltf::texture::Info, warnings: &mut Warnings)
 
 fn warn_unrendered(p: &Material, m: &gltf::Material, warnings: &mut Warnings) {
     let pairs = [
-        (p.normal_texture.is_some(), "normal maps (normalTexture): not rendered"),
+        (
+            p.normal_texture.is_some(),
+            "normal maps: tangents from each triangle's texture coordinates (the file's \
+             TANGENT attribute and MikkTSpace tangents are not used yet)",
+        ),
         (m.occlusion_texture().is_some(), "occlusion maps (occlusionTexture): not rendered"),
         (
             p.emissive_texture.is_some(),
