@@ -402,12 +402,9 @@ fn processes_mentioning(needle: &str) -> Vec<u32> {
     found
 }
 
-/// Also checks `--resolution` and `--scale`: the frames have the command line's size (80×48
-/// scaled by 0.5), not the file's 48×32.
-#[test]
-fn the_demo_renders_with_child_worker_processes_and_leaves_none_behind() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("box.toml");
+/// A floor lit by a quad light at 48×32, one sample per pixel: quick to render.
+fn small_box_scene(dir: &std::path::Path) -> std::path::PathBuf {
+    let scene = dir.join("box.toml");
     std::fs::write(
         &scene,
         r#"
@@ -447,6 +444,15 @@ transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scal
 "#,
     )
     .unwrap();
+    scene
+}
+
+/// Also checks `--resolution` and `--scale`: the frames have the command line's size (80×48
+/// scaled by 0.5), not the file's 48×32.
+#[test]
+fn the_demo_renders_with_child_worker_processes_and_leaves_none_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_box_scene(dir.path());
     let out = dir.path().join("demo-out");
     let mut demo = Proc::spawn(
         &[
@@ -487,6 +493,77 @@ transform = { translation = [0.0, 0.99, 0.0], rotation = [180.0, 0.0, 0.0], scal
         processes_mentioning(out.to_str().unwrap()).is_empty(),
         "worker processes outlived the demo"
     );
+}
+
+/// A live resolution change (what a resized window under `--resolution window` sends, here
+/// from an interaction script through the same scene holder): every frame after it has the
+/// new size, the master's pixel sets follow and the worker processes render them, and a
+/// size with fewer pixels than S is refused without stopping the run.
+#[test]
+fn a_resolution_edit_resizes_the_frames_and_the_workers_follow() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_box_scene(dir.path());
+    let script = dir.path().join("resize.toml");
+    std::fs::write(
+        &script,
+        "[[edit]]\nat = 1.0\nresolution = { width = 4, height = 1 }\n\n\
+         [[edit]]\nat = 1.0\nresolution = { width = 72, height = 40 }\n",
+    )
+    .unwrap();
+    let out = dir.path().join("demo-out");
+    let mut demo = Proc::spawn(
+        &[
+            "demo",
+            scene.to_str().unwrap(),
+            "--workers",
+            "2",
+            "--frames",
+            "60",
+            "--sets",
+            "8",
+            "--fps",
+            "20",
+            "--script",
+            script.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[("DISPLAY", ""), ("WAYLAND_DISPLAY", "")],
+    );
+    let status = demo.wait(PATIENCE).expect("the demo ends by itself");
+    assert!(status.success(), "demo failed: {}", demo.stderr());
+    assert!(
+        demo.stderr().contains("cannot render 4x1") && demo.stderr().contains("8 sets"),
+        "the 4x1 edit (4 pixels, 8 sets) is refused with its reason: {}",
+        demo.stderr()
+    );
+    let stats = std::fs::read_to_string(out.join("stats.jsonl")).unwrap();
+    let lines: Vec<Value> = stats.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let sizes: Vec<(u32, u32, u64)> = lines
+        .iter()
+        .map(|s| {
+            let png = out.join(format!("frame-{:06}.png", u(s, "frame")));
+            let img = image::open(&png).unwrap_or_else(|e| panic!("{}: {e}", png.display()));
+            let lit = img.to_rgb8().pixels().filter(|p| p.0 != [0, 0, 0]).count() as u64;
+            (img.width(), img.height(), lit)
+        })
+        .collect();
+    let first_new = sizes.iter().position(|s| (s.0, s.1) == (72, 40));
+    let Some(first_new) = first_new else { panic!("no frame of the new size: {sizes:?}") };
+    assert!(first_new > 0, "frames before the edit have the file's size: {sizes:?}");
+    assert!(
+        sizes[..first_new].iter().all(|s| (s.0, s.1) == (48, 32))
+            && sizes[first_new..].iter().all(|s| (s.0, s.1) == (72, 40)),
+        "one size before the edit, the new one after it: {sizes:?}"
+    );
+    // Frames of the new size hold the workers' path-traced results, not holes.
+    let late = &lines[lines.len() - 5..];
+    assert!(late.iter().all(|s| u(s, "jobs_back") > 0), "results at the new size: {stats}");
+    // As much of the picture is lit as before (the floor and the light, about a tenth).
+    let lit = |s: &(u32, u32, u64)| s.2 as f64 / f64::from(s.0 * s.1);
+    let before = lit(&sizes[first_new - 1]);
+    assert!(before > 0.02, "the frames before the edit are lit: {sizes:?}");
+    assert!(sizes[sizes.len() - 5..].iter().all(|s| lit(s) > before / 2.0), "lit: {sizes:?}");
 }
 
 /// A worker with an empty cache renders a glTF scene (`master lit.gltf`: JSON, `.bin` and

@@ -119,3 +119,91 @@ fn the_demo_window_shows_the_cornell_box_follows_edits_and_closes_cleanly() {
     let orphans: Vec<u32> = workers.into_iter().filter(|&p| alive(p)).collect();
     assert!(orphans.is_empty(), "worker processes outlived the demo: {orphans:?}");
 }
+
+/// `demo --resolution window`: the render size is the window's picture area (the window
+/// left of the panel) in physical pixels, and a resize of the window changes it live.
+#[test]
+fn with_resolution_window_the_render_size_follows_the_window() {
+    use std::io::{BufRead, BufReader};
+    use std::sync::mpsc;
+    use x11rb::protocol::xproto::{ConfigureWindowAux, ConnectionExt};
+
+    let Some(xvfb) = Xvfb::start_or_skip(
+        "with_resolution_window_the_render_size_follows_the_window",
+        WIDTH,
+        HEIGHT,
+    ) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let mut demo = Command::new(env!("CARGO_BIN_EXE_gridlight"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["demo", "--workers", "1", "--resolution", "window", "--out"])
+        .arg(dir.path().join("out"))
+        .env("DISPLAY", &xvfb.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("NODEVICE_SELECT", "1")
+        .env("RUST_LOG", "info")
+        .env("NO_COLOR", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("gridlight demo starts");
+    // Every size the window asks for, from its log line.
+    let (sizes_tx, sizes) = mpsc::channel::<(u32, u32)>();
+    let stderr = demo.stderr.take().expect("piped");
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            eprintln!("{line}");
+            if !line.contains("render size follows the window") {
+                continue;
+            }
+            let field = |name: &str| {
+                let rest = line.split(&format!("{name}=")).nth(1)?;
+                rest.split(|c: char| !c.is_ascii_digit()).next()?.parse::<u32>().ok()
+            };
+            if let (Some(w), Some(h)) = (field("width"), field("height")) {
+                let _ = sizes_tx.send((w, h));
+            }
+        }
+    });
+    let (conn, screen) = x11rb::connect(Some(&xvfb.display)).expect("connects to Xvfb");
+    let root = conn.setup().roots[screen].root;
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let window = loop {
+        if let Some(w) = find_window(&conn, root, "gridlight demo") {
+            break w;
+        }
+        assert!(Instant::now() < deadline, "no demo window within 60 s");
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let panel = 300; // window::panel::PANEL_WIDTH at one pixel per point (Xvfb)
+    let wait_size = |what: &str| {
+        sizes.recv_timeout(Duration::from_secs(60)).unwrap_or_else(|e| panic!("{what}: {e}"))
+    };
+    let geometry = conn.get_geometry(window).unwrap().reply().unwrap();
+    let first = wait_size("the first size");
+    assert_eq!(
+        first,
+        (u32::from(geometry.width) - panel, u32::from(geometry.height)),
+        "the render size is the picture area of the {}x{} window",
+        geometry.width,
+        geometry.height
+    );
+    // The user makes the window smaller: the render size follows.
+    conn.configure_window(window, &ConfigureWindowAux::new().width(1000).height(700)).unwrap();
+    conn.flush().unwrap();
+    assert_eq!(wait_size("the size after the resize"), (1000 - panel, 700));
+    assert!(demo.try_wait().unwrap().is_none(), "the demo runs on at the new size");
+    request_close(&conn, window);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let status = loop {
+        if let Some(status) = demo.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "the demo did not exit within 30 s of the close");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(status.success(), "the demo exits cleanly after its window closes: {status}");
+}

@@ -40,7 +40,7 @@ use crate::scene_holder::SceneHolder;
 use crate::scheduler::{Scheduler, SchedulerConfig, SchedulerLinks};
 use crate::shared::counters::Counters;
 use crate::shared::holdings::HeldJobs;
-use crate::shared::sets::SetTable;
+use crate::shared::sets::SetTables;
 use crate::shared::workers::{WorkerCounts, WorkerTable};
 use crate::supervision::{
     InjectPanic, PanicInjection, PanicPlan, PeerPolicy, RestartPolicy, Supervised, Supervision,
@@ -166,8 +166,9 @@ pub fn start(
     if config.pipeline == 0 || config.max_connections == 0 {
         return Err(invalid("pipeline (k) and max_connections must be at least 1".into()));
     }
-    let sets =
-        Arc::new(SetTable::new(state.resolution, config.sets).map_err(|e| invalid(e.to_string()))?);
+    let sets = Arc::new(
+        SetTables::new(state.resolution, config.sets).map_err(|e| invalid(e.to_string()))?,
+    );
     let socket = std::net::TcpListener::bind(config.listen)?;
     socket.set_nonblocking(true)?;
     let local_addr = socket.local_addr()?;
@@ -264,7 +265,7 @@ fn wire(
     state: SceneState,
     assets: AssetStore,
     sink: Box<dyn FrameSink>,
-    sets: Arc<SetTable>,
+    sets: Arc<SetTables>,
     socket: std::net::TcpListener,
     report: Arc<Report>,
     counters: Arc<Counters>,
@@ -321,6 +322,7 @@ fn wire(
             .start();
     let (changes_to, edits_to) = (scheduler.clone().recipient(), presenter.clone().recipient());
     let scene = SceneHolder::new(state, changes_to, edits_to, counters.clone(), config.restart)
+        .with_sets(sets.clone())
         .with_faults(faults.clone())
         .start();
 

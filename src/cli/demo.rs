@@ -80,6 +80,9 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
         None => SceneSource::default_builtin(),
     };
     let windowed = !args.headless && crate::window::display_available();
+    if !windowed {
+        args.display.check_windowless()?;
+    }
     let workers = args
         .workers
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
@@ -147,6 +150,7 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             title: format!("gridlight demo: {}", opts.scene.name()),
             view: args.display.view,
             shot_dir: args.out.clone(),
+            follow_window: args.display.follow_window(),
             ..crate::window::WindowOptions::default()
         };
         launch::run_window(&opts, window, start_workers, Some(Box::new(stop_workers.clone())))

@@ -8,7 +8,7 @@ use anyhow::bail;
 use gridlight_actors::protocol::{Partition, SetsConfig};
 use gridlight_actors::supervision::PanicInjection;
 
-use super::resolution::{ResolutionArg, ScaleArg};
+use super::resolution::{ScaleArg, SizeArg};
 use super::GlobalArgs;
 use crate::gpu::Backend;
 use crate::master::headless::HeadlessOptions;
@@ -82,11 +82,12 @@ impl PacingArgs {
 /// scene's `[render.reconstruction]`, which overrides the paper's values).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct DisplayArgs {
-    /// Image size, overriding the scene file's `[resolution]` (each side 1..=16384).
-    #[arg(long, value_name = "WxH")]
-    pub resolution: Option<ResolutionArg>,
-    /// Multiplies the image size (the scene file's, or `--resolution`'s) by F on each side,
-    /// rounded (0.5: a quarter of the pixels).
+    /// Image size, overriding the scene file's `[resolution]` (each side 1..=16384); `window`:
+    /// the window's picture area in physical pixels, following every resize.
+    #[arg(long, value_name = "WxH|window")]
+    pub resolution: Option<SizeArg>,
+    /// Multiplies the image size (the scene file's, `--resolution`'s, or the window's) by F
+    /// on each side, rounded (0.5: a quarter of the pixels).
     #[arg(long, value_name = "F")]
     pub scale: Option<ScaleArg>,
     /// The view shown in the window or written as PNG.
@@ -129,6 +130,22 @@ pub struct DisplayArgs {
 }
 
 impl DisplayArgs {
+    /// `--resolution window`'s scale (render pixels per window pixel: `--scale`, or 1).
+    pub fn follow_window(&self) -> Option<f32> {
+        (self.resolution == Some(SizeArg::Window)).then(|| self.scale.map_or(1.0, |s| s.0))
+    }
+
+    /// Refuses `--resolution window` where no window will show (headless, no display).
+    pub fn check_windowless(&self) -> anyhow::Result<()> {
+        if self.follow_window().is_some() {
+            anyhow::bail!(
+                "--resolution window needs a window, and this run has none (--headless, or no \
+                 display): give the size as --resolution WxH"
+            );
+        }
+        Ok(())
+    }
+
     /// `base` (the scene's parameters) with this command line's overrides.
     pub fn params(&self, base: ReconstructParams) -> ReconstructParams {
         ReconstructParams {
@@ -277,12 +294,14 @@ pub fn run(args: Args, global: &GlobalArgs) -> anyhow::Result<()> {
             title: format!("gridlight master: {}", opts.scene.name()),
             view: args.display.view,
             shot_dir: args.out.clone().unwrap_or_else(|| PathBuf::from(".")),
+            follow_window: args.display.follow_window(),
             ..crate::window::WindowOptions::default()
         };
         let report = launch::run_window(&opts, window, |_| Ok(()), None)?;
         tracing::info!(shown = report.shown, skipped = report.skipped, "master finished");
         return Ok(());
     }
+    args.display.check_windowless()?;
     let report = launch::run(&opts, |_| Ok(()))?;
     tracing::info!(shown = report.shown, skipped = report.skipped, "master finished");
     Ok(())

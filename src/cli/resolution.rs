@@ -22,6 +22,8 @@ pub enum ResolutionError {
     Scale(String),
     #[error("--scale {scale} makes the {side} {value} pixels, over {MAX_RESOLUTION}")]
     ScaledOutOfRange { scale: f32, side: &'static str, value: u64 },
+    #[error("`{0}` is neither WIDTHxHEIGHT (for example 1920x1080) nor `window`")]
+    SizeSyntax(String),
 }
 
 /// The largest `--scale`: a 1×1 scene could not grow past the per-side limit anyway.
@@ -55,6 +57,39 @@ impl FromStr for ResolutionArg {
         let width = side("width", w).map_err(|e| e.unwrap_or_else(syntax))?;
         let height = side("height", h).map_err(|e| e.unwrap_or_else(syntax))?;
         Ok(Self(Resolution { width, height }))
+    }
+}
+
+/// `--resolution` on `master` and `demo`: a size, or `window` (the render size follows the
+/// window's picture area in physical pixels, times `--scale`; see `window::follow`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SizeArg {
+    Fixed(ResolutionArg),
+    Window,
+}
+
+impl SizeArg {
+    /// The fixed size, if one was given.
+    pub fn fixed(self) -> Option<ResolutionArg> {
+        match self {
+            Self::Fixed(r) => Some(r),
+            Self::Window => None,
+        }
+    }
+}
+
+impl FromStr for SizeArg {
+    type Err = ResolutionError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s.trim().eq_ignore_ascii_case("window") {
+            return Ok(Self::Window);
+        }
+        match s.parse::<ResolutionArg>() {
+            Ok(r) => Ok(Self::Fixed(r)),
+            Err(ResolutionError::Syntax(_)) => Err(ResolutionError::SizeSyntax(s.to_owned())),
+            Err(e) => Err(e),
+        }
     }
 }
 
@@ -133,6 +168,17 @@ mod tests {
         assert_eq!(r, base, "without flags the scene's size stays");
         let err = run(None, "10").expect_err("19200 is over the limit").to_string();
         assert!(err.contains("--scale 10") && err.contains("width 19200"), "{err}");
+    }
+
+    #[test]
+    fn the_size_flag_takes_a_size_or_window() {
+        assert_eq!("Window".parse::<SizeArg>(), Ok(SizeArg::Window));
+        let fixed = "800x600".parse::<SizeArg>().expect("size").fixed().expect("fixed");
+        assert_eq!(fixed.0, Resolution { width: 800, height: 600 });
+        let err = "windows".parse::<SizeArg>().expect_err("not a size").to_string();
+        assert!(err.contains("neither WIDTHxHEIGHT") && err.contains("`window`"), "{err}");
+        let err = "0x5".parse::<SizeArg>().expect_err("out of range").to_string();
+        assert!(err.contains("width 0 is not in 1..=16384"), "{err}");
     }
 
     #[test]

@@ -123,7 +123,9 @@ pub struct Composer {
     ahead_for_sink: bool,
     params: ReconstructParams,
     backend: Backend,
-    reconstructor: Option<Reconstructor>,
+    /// The reconstructor and the frame size it was made for: a new size (a resized
+    /// window) starts a new one, its history dropped.
+    reconstructor: Option<(Reconstructor, (u32, u32))>,
     /// The shown frame's radiance divided by the G-buffer albedo (reused between frames).
     demodulated: Vec<Vec3>,
     /// The G-buffer of the state being accumulated, its emission as pixel area means.
@@ -171,7 +173,7 @@ impl Composer {
 
     /// Frames read back from the GPU reconstruction so far.
     pub fn read_backs(&self) -> u64 {
-        self.reconstructor.as_ref().map_or(0, Reconstructor::read_backs)
+        self.reconstructor.as_ref().map_or(0, |(r, _)| r.read_backs())
     }
 
     /// The G-buffer source, whose render scene is the last composed frame's (for picking).
@@ -181,7 +183,7 @@ impl Composer {
 
     /// "cpu" or the GPU adapter's name, once the first frame chose.
     pub fn reconstructor(&self) -> Option<String> {
-        self.reconstructor.as_ref().map(Reconstructor::describe)
+        self.reconstructor.as_ref().map(|(r, _)| r.describe())
     }
 
     /// Reconstructs `frame` and makes `view` of it.
@@ -206,10 +208,11 @@ impl Composer {
             return Err(ComposeError::Size { width, height });
         }
         demodulate(&frame.current, &g.albedo, &mut self.demodulated);
-        if self.reconstructor.is_none() {
-            self.reconstructor = Some(self.new_reconstructor(width, height)?);
+        if self.reconstructor.as_ref().is_none_or(|(_, size)| *size != (width, height)) {
+            self.reconstructor = None;
+            self.reconstructor = Some((self.new_reconstructor(width, height)?, (width, height)));
         }
-        let reconstructor = self.reconstructor.as_mut().expect("made above");
+        let (reconstructor, _) = self.reconstructor.as_mut().expect("made above");
         let inputs = FrameInputs {
             frame: frame.frame,
             state_version: frame.state.version,

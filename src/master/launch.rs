@@ -26,6 +26,7 @@ use tracing::{info, warn};
 
 use crate::assets::Assets;
 use crate::cli::master::DisplayArgs;
+use crate::cli::resolution::SizeArg;
 use crate::master::compose::Composer;
 use crate::master::headless::{HeadlessOptions, HeadlessSink};
 use crate::reconstruct::ReconstructParams;
@@ -119,7 +120,8 @@ pub fn prepare(opts: &MasterOptions) -> anyhow::Result<Prepared> {
     let search = opts.scene.search_path(&opts.asset_dirs);
     let mut loaded = crate::scene::load_source(&opts.scene, &search)?;
     let size = &mut loaded.state.resolution;
-    crate::cli::resolution::apply(size, opts.display.resolution, opts.display.scale)?;
+    let fixed = opts.display.resolution.and_then(SizeArg::fixed);
+    crate::cli::resolution::apply(size, fixed, opts.display.scale)?;
     // The store hashes each file as it adds it: the only hashing at start.
     let paths = crate::scene::asset_paths(&loaded.state, &loaded.assets)
         .with_context(|| format!("listing the assets of {}", opts.scene))?;

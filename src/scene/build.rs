@@ -27,7 +27,7 @@ use crate::reconstruct::ReconstructError;
 use crate::shapes;
 
 /// Largest accepted image side in pixels.
-pub const MAX_RESOLUTION: u32 = 16384;
+pub const MAX_RESOLUTION: u32 = Resolution::MAX_SIDE;
 /// Largest accepted path length.
 pub const MAX_DEPTH: u32 = 1024;
 /// Name of the material given to faces and shapes that have none.

@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use gridlight_actors::state::{
-    Camera, Environment, Light, Material, MaterialId, SceneState, Transform,
+    Camera, Environment, Light, Material, MaterialId, Resolution, SceneState, Transform,
 };
 use thiserror::Error;
 
@@ -41,6 +41,8 @@ pub enum WindowEdit {
         light: Light,
     },
     Environment(Option<Environment>),
+    /// The render size (the window was resized under `--resolution window`).
+    Resolution(Resolution),
 }
 
 /// A window edit that names an index the window's copy does not have.
@@ -81,6 +83,7 @@ impl WindowEdit {
                 *slot = *light;
             }
             WindowEdit::Environment(environment) => state.environment = environment.clone(),
+            WindowEdit::Resolution(resolution) => state.resolution = *resolution,
         }
         Ok(())
     }
@@ -94,6 +97,7 @@ enum Target {
     Material(MaterialId),
     Light(u32),
     Environment,
+    Resolution,
 }
 
 impl WindowEdit {
@@ -104,6 +108,7 @@ impl WindowEdit {
             WindowEdit::Material { id, .. } => Target::Material(*id),
             WindowEdit::Light { index, .. } => Target::Light(*index),
             WindowEdit::Environment(_) => Target::Environment,
+            WindowEdit::Resolution(_) => Target::Resolution,
         }
     }
 }

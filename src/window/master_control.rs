@@ -143,6 +143,7 @@ pub fn to_master_edit(edit: &WindowEdit, state: &SceneState) -> Option<Edit> {
             intensity: Some(e.intensity),
             rotation_deg: Some(e.rotation_deg),
         }),
+        WindowEdit::Resolution(r) => Edit::Resolution(*r),
     })
 }
 

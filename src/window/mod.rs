@@ -21,7 +21,8 @@
 //! - [`app`]: the winit application (input, drawing).
 //! - [`gpu`], [`blit`]: the wgpu surface and the picture pass (`blit.wgsl`).
 //! - [`camera`], [`manipulate`]: camera controllers and object moves (pure maths).
-//! - [`edits`]: scene edits, their coalescing and local application.
+//! - [`edits`]: scene edits, their coalescing and local application; [`follow`]: the
+//!   render size following the window (`--resolution window`).
 //! - [`panel`], [`status`]: the egui side panel over plain data.
 //! - [`picture`]: pictures and the diagnostic views; [`layout`]: where the picture sits.
 //! - [`latest`]: the newest-only hand-off; [`record`]: edit recording; [`screenshot`].
@@ -39,6 +40,7 @@ pub mod app;
 pub mod blit;
 pub mod camera;
 pub mod edits;
+pub mod follow;
 pub mod gpu;
 pub mod latest;
 pub mod layout;
@@ -114,6 +116,8 @@ pub struct WindowOptions {
     pub shot_dir: PathBuf,
     /// Environment maps the panel offers (asset paths).
     pub environment_maps: Vec<String>,
+    /// `--resolution window`: render at the picture area's physical size times this scale.
+    pub follow_window: Option<f32>,
 }
 
 impl Default for WindowOptions {
@@ -124,6 +128,7 @@ impl Default for WindowOptions {
             record: false,
             shot_dir: PathBuf::from("."),
             environment_maps: Vec::new(),
+            follow_window: None,
         }
     }
 }

@@ -17,7 +17,7 @@ use std::time::Instant;
 
 use crate::scene::state::{SceneState, StateVersion};
 use crate::shared::packed_frame::{ClosedFrame, PackedFrame};
-use crate::shared::sets::SetTable;
+use crate::shared::sets::SetTables;
 use crate::wire::protocol::{ConnId, FrameNo, PackedRadiance, SetNo};
 
 /// What happened to one result.
@@ -63,14 +63,14 @@ struct OpenFrame {
 /// The frames scheduled and not yet displayed.
 #[derive(Debug)]
 pub struct FrameTable {
-    sets: Arc<SetTable>,
+    sets: Arc<SetTables>,
     frames: BTreeMap<FrameNo, OpenFrame>,
     /// Frames up to and including this one were displayed.
     closed_upto: Option<FrameNo>,
 }
 
 impl FrameTable {
-    pub fn new(sets: Arc<SetTable>) -> Self {
+    pub fn new(sets: Arc<SetTables>) -> Self {
         Self { sets, frames: BTreeMap::new(), closed_upto: None }
     }
 
@@ -89,8 +89,8 @@ impl FrameTable {
                     started_at: o.started_at,
                     lost: true,
                     back: 0,
-                    results: PackedFrame::new(self.sets.clone()),
-                    owners: vec![None; self.sets.sets() as usize],
+                    results: PackedFrame::new(o.results.set_table().clone()),
+                    owners: vec![None; o.owners.len()],
                 };
                 (*f, lost)
             })
@@ -103,7 +103,8 @@ impl FrameTable {
         if self.is_closed(frame) {
             return;
         }
-        let s = self.sets.sets() as usize;
+        let sets = self.sets.checked(state.resolution);
+        let s = sets.sets() as usize;
         self.frames.entry(frame).or_insert(OpenFrame {
             state,
             spp,
@@ -111,7 +112,7 @@ impl FrameTable {
             started_at: None,
             lost: false,
             back: 0,
-            results: PackedFrame::new(self.sets.clone()),
+            results: PackedFrame::new(sets),
             owners: vec![None; s],
         });
     }
@@ -212,7 +213,7 @@ mod tests {
     use glam::Vec3;
 
     fn table() -> FrameTable {
-        let sets = SetTable::new(
+        let sets = SetTables::new(
             Resolution { width: 8, height: 8 },
             SetsConfig { sets: 4, partition: Partition::QuasiRandom },
         )
@@ -238,7 +239,7 @@ mod tests {
         let covered: Vec<usize> = (0..64).filter(|p| mask[*p]).collect();
         assert_eq!(
             covered,
-            t.sets.pixels(1).unwrap().iter().map(|p| *p as usize).collect::<Vec<_>>()
+            t.sets.checked(Resolution { width: 8, height: 8 }).pixels(1).unwrap().iter().map(|p| *p as usize).collect::<Vec<_>>()
         );
         assert!(covered.iter().all(|p| radiance[*p] == Vec3::splat(2.0)));
     }

@@ -31,7 +31,7 @@ use crate::messages::{
 };
 use crate::shared::counters::Counters;
 use crate::shared::pacing::{Pacing, PacingError};
-use crate::shared::sets::SetTable;
+use crate::shared::sets::SetTables;
 use crate::shared::workers::WorkerTable;
 use crate::supervision::{
     ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
@@ -78,7 +78,7 @@ pub struct Assembler {
 
 impl Assembler {
     pub fn new(
-        sets: Arc<SetTable>,
+        sets: Arc<SetTables>,
         config: AssemblerConfig,
         links: AssemblerLinks,
         counters: Arc<Counters>,

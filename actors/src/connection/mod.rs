@@ -32,7 +32,7 @@ use crate::messages::{
 use crate::scene::asset_store::AssetStore;
 use crate::shared::counters::Counters;
 use crate::shared::holdings::HeldJobs;
-use crate::shared::sets::SetTable;
+use crate::shared::sets::SetTables;
 use crate::shared::workers::WorkerTable;
 use crate::supervision::{
     ActorKind, Guard, GuardedTimers, InjectPanic, PeerBackoff, Supervised, Supervision,
@@ -50,7 +50,8 @@ const CLOSE_GRACE: Duration = Duration::from_secs(2);
 /// What every connection shares.
 pub struct ConnectionConfig {
     pub secret: Option<Vec<u8>>,
-    pub sets: Arc<SetTable>,
+    /// The pixel sets of every resolution the run has used.
+    pub sets: Arc<SetTables>,
     pub assets: Arc<AssetStore>,
     /// k: jobs a worker may hold at once.
     pub pipeline: u32,

@@ -13,7 +13,9 @@ use glam::{EulerRot, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::scene::state::{Camera, Environment, Light, MaterialKind, RenderSettings, SceneState};
+use crate::scene::state::{
+    Camera, Environment, Light, MaterialKind, RenderSettings, Resolution, SceneState,
+};
 
 /// One change of the scene state.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -33,6 +35,9 @@ pub enum Edit {
     ClearEnvironment,
     /// Change path-tracing settings.
     Render(RenderSettings),
+    /// Render at another image size (a resized window): the frames after it have the new
+    /// size and the pixel sets follow; the master refuses a size with fewer pixels than S.
+    Resolution(Resolution),
 }
 
 /// Fields of the camera to change.
@@ -93,6 +98,8 @@ pub enum EditError {
     NoLight { index: usize, count: usize },
     #[error("{field} must be {expected}, got {value}")]
     BadValue { field: &'static str, expected: &'static str, value: String },
+    #[error("the master cannot render {width}x{height}: {why}")]
+    Resolution { width: u32, height: u32, why: String },
 }
 
 /// Applies `edit` to `state` (the version is the holder's business, not bumped here).
@@ -179,6 +186,15 @@ pub fn apply(state: &mut SceneState, edit: &Edit) -> Result<(), EditError> {
                 ));
             }
             state.render = *r;
+            Ok(())
+        }
+        Edit::Resolution(r) => {
+            let max = Resolution::MAX_SIDE;
+            if !(1..=max).contains(&r.width) || !(1..=max).contains(&r.height) {
+                let why = format!("each side must be in 1..={max} pixels");
+                return Err(EditError::Resolution { width: r.width, height: r.height, why });
+            }
+            state.resolution = *r;
             Ok(())
         }
     }

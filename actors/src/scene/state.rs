@@ -65,13 +65,17 @@ impl SceneState {
 }
 
 /// Image size in pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct Resolution {
     pub width: u32,
     pub height: u32,
 }
 
 impl Resolution {
+    /// The largest side the scene file, the command line and a live resize accept: a
+    /// 16384² frame's pixel sets and planes already take gigabytes on the master.
+    pub const MAX_SIDE: u32 = 16384;
+
     /// Number of pixels in the image.
     pub fn pixels(&self) -> usize {
         self.width as usize * self.height as usize

@@ -12,6 +12,7 @@ use crate::messages::{ApplyEdit, CurrentState, EditApplied, EditMade, PlayScript
 use crate::scene::edit::{apply, Edit, EditError};
 use crate::scene::state::{SceneState, StateVersion};
 use crate::shared::counters::Counters;
+use crate::shared::sets::SetTables;
 use crate::supervision::{
     ActorKind, Guard, GuardedTimers, InjectPanic, RestartPolicy, Supervised, Supervision,
 };
@@ -22,6 +23,8 @@ pub struct SceneHolder {
     changes_to: Recipient<StateChanged>,
     /// The presenter, which times each edit until a frame shows it.
     edits_to: Recipient<EditApplied>,
+    /// The master's pixel sets: a new resolution must admit S sets before a state has it.
+    sets: Option<Arc<SetTables>>,
     supervision: Supervision,
 }
 
@@ -34,13 +37,28 @@ impl SceneHolder {
         policy: RestartPolicy,
     ) -> Self {
         let supervision = Supervision::restarting(ActorKind::SceneHolder, policy, counters);
-        Self { state, changes_to, edits_to, supervision }
+        Self { state, changes_to, edits_to, sets: None, supervision }
+    }
+
+    /// Checks every new resolution against (and makes its tables in) `sets`.
+    pub fn with_sets(mut self, sets: Arc<SetTables>) -> Self {
+        self.sets = Some(sets);
+        self
     }
 
     /// Applies an edit that happened at `at` (logged for the edit-to-display latency).
     fn apply(&mut self, edit: &Edit, at: Instant) -> Result<StateVersion, EditError> {
         let mut next = (*self.state).clone();
         apply(&mut next, edit)?;
+        if let Some(sets) = self.sets.as_ref().filter(|_| next.resolution != self.state.resolution)
+        {
+            let res = next.resolution;
+            sets.get(res).map_err(|e| EditError::Resolution {
+                width: res.width,
+                height: res.height,
+                why: e.to_string(),
+            })?;
+        }
         next.version = self.state.version + 1;
         let version = next.version;
         self.state = Arc::new(next);

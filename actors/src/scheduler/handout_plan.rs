@@ -210,6 +210,7 @@ impl HandOutPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::state::Resolution;
     use crate::shared::pacing::Heuristic;
     use crate::wire::protocol::SetNo;
 
@@ -237,7 +238,8 @@ mod tests {
 
         /// The scheduler hands `(frame, set)` to `conn` at `at`; true for the frame's first.
         fn hand(&mut self, conn: ConnId, frame: FrameNo, set: SetNo, at: Instant) -> bool {
-            self.held.hand(conn, HeldJob { frame, set, version: 1, handed_at: at });
+            let resolution = Resolution { width: 8, height: 8 };
+            self.held.hand(conn, HeldJob { frame, set, version: 1, resolution, handed_at: at });
             self.plan.handed(conn, frame, at)
         }
 

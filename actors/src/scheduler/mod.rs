@@ -345,7 +345,9 @@ impl Scheduler {
             }
             let Some(job) = frame.and_then(|f| self.queue.take_from(f)) else { break };
             let (frame, set, version) = (job.frame, job.set, job.state.version);
-            self.held.lock().hand(conn, HeldJob { frame, set, version, handed_at: now });
+            let resolution = job.state.resolution;
+            let held = HeldJob { frame, set, version, resolution, handed_at: now };
+            self.held.lock().hand(conn, held);
             if self.plan.handed(conn, job.frame, now) {
                 self.links.started_to.do_send(FrameStarted { frame: job.frame });
             }

@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use std::sync::{Mutex, MutexGuard};
 use std::time::Instant;
 
-use crate::scene::state::StateVersion;
+use crate::scene::state::{Resolution, StateVersion};
 use crate::wire::protocol::{ConnId, FrameNo, SetNo};
 
 /// One job a connection holds.
@@ -21,6 +21,8 @@ pub struct HeldJob {
     pub set: SetNo,
     /// The scene-state version it names (its result must carry the same).
     pub version: StateVersion,
+    /// Its state's image size: the result holds one pixel of the set at this size each.
+    pub resolution: Resolution,
     /// When the scheduler handed it out.
     pub handed_at: Instant,
 }
@@ -84,7 +86,7 @@ mod tests {
     use super::*;
 
     fn job(frame: FrameNo, set: SetNo, at: Instant) -> HeldJob {
-        HeldJob { frame, set, version: 1, handed_at: at }
+        HeldJob { frame, set, version: 1, resolution: Resolution { width: 8, height: 8 }, handed_at: at }
     }
 
     #[test]

@@ -14,6 +14,9 @@
 //!
 //! **Tiles**: a near-square grid of `S` rectangles, for the paper's Figure 3.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
 use thiserror::Error;
 
 use crate::scene::state::Resolution;
@@ -82,6 +85,52 @@ impl SetTable {
 
     pub fn resolution(&self) -> Resolution {
         self.resolution
+    }
+}
+
+/// The partition of every resolution a run has used, made once each: S and the partition
+/// stay for the run, the resolution follows the scene state (a resized window). The master
+/// keeps one, shared by its actors; frames, jobs and results find their sets by the
+/// resolution of the state they belong to.
+#[derive(Debug)]
+pub struct SetTables {
+    config: SetsConfig,
+    tables: Mutex<HashMap<Resolution, Arc<SetTable>>>,
+}
+
+impl SetTables {
+    /// Tables of `config`, starting with `first`'s (refused like [`SetTable::new`]).
+    pub fn new(first: Resolution, config: SetsConfig) -> Result<Self, SetsError> {
+        let tables = Self { config, tables: Mutex::new(HashMap::new()) };
+        tables.get(first)?;
+        Ok(tables)
+    }
+
+    /// The sets of `res`, computed on first use; an image with fewer pixels than S is
+    /// refused.
+    pub fn get(&self, res: Resolution) -> Result<Arc<SetTable>, SetsError> {
+        // A poisoned lock only means another thread panicked after a complete insert.
+        let mut tables = self.tables.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(table) = tables.get(&res) {
+            return Ok(Arc::clone(table));
+        }
+        let table = Arc::new(SetTable::new(res, self.config)?);
+        tables.insert(res, Arc::clone(&table));
+        Ok(table)
+    }
+
+    /// The sets of a resolution already checked, by [`SetTables::new`] or by the scene
+    /// holder before it made a state of that resolution.
+    ///
+    /// # Panics
+    /// When `res` was refused, which the checks above rule out.
+    pub fn checked(&self, res: Resolution) -> Arc<SetTable> {
+        self.get(res).expect("the resolution of every scene state is checked against S")
+    }
+
+    /// S and the partition.
+    pub fn config(&self) -> SetsConfig {
+        self.config
     }
 }
 

@@ -117,6 +117,18 @@ impl App {
         }
     }
 
+    /// Under `--resolution window`, asks for the picture area's size once it has settled;
+    /// true while a size waits to settle (the window must draw again to ask for it).
+    fn follow_window(&mut self, area: Rect) -> bool {
+        let Some(follow) = &mut self.follow else { return false };
+        let current = self.scene.resolution;
+        if let Some(size) = follow.observe(area.width, area.height, current, Instant::now()) {
+            tracing::info!(width = size.width, height = size.height, "render size follows the window");
+            self.edit(WindowEdit::Resolution(size));
+        }
+        self.follow.as_ref().is_some_and(FollowWindow::is_pending)
+    }
+
     /// The picture of the newest frame was just presented: the edit-to-display latency of
     /// the edits it shows first ends now (a headless master's ends when it composed the
     /// frame: there is nothing more to present).
@@ -154,6 +166,9 @@ impl App {
         // The panel has a fixed width; the picture gets the rest of the window.
         let picture_width = (width as f32 - panel::PANEL_WIDTH * ppp).max(0.0);
         let area = Rect { x: 0.0, y: 0.0, width: picture_width, height: height as f32 };
+        if self.follow_window(area) {
+            s.window.request_redraw();
+        }
         let res = self.scene.resolution;
         self.picture_rect = layout::fit(area, res.width, res.height);
 

@@ -25,6 +25,7 @@ use super::camera::{CameraController, MoveKeys};
 use super::edits::{EditQueue, WindowEdit};
 use super::gpu::{Acquired, Gpu};
 use super::latest::Latest;
+use super::follow::FollowWindow;
 use super::layout::{self, Rect};
 use super::manipulate::{self, Nudge};
 use super::panel::{self, PanelAction, PanelModel, PanelSettings};
@@ -80,6 +81,8 @@ pub struct App {
     /// Where the picture was drawn last, in physical pixels.
     picture_rect: Option<Rect>,
     message: String,
+    /// `--resolution window`: the render size follows the picture area.
+    follow: Option<FollowWindow>,
     /// Set when the window must close (closed by the user, or the master stopped).
     closing: bool,
 }
@@ -100,6 +103,7 @@ impl App {
             shot_format: Default::default(),
             recording: options.record,
         };
+        let follow = options.follow_window.map(FollowWindow::new);
         let mut recorder = Recorder::default();
         recorder.set_recording(options.record, Instant::now());
         Self {
@@ -126,6 +130,7 @@ impl App {
             shown: None,
             picture_rect: None,
             message: String::new(),
+            follow,
             closing: false,
         }
     }

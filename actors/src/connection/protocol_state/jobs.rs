@@ -37,8 +37,8 @@ impl ProtocolState {
                 out.push(Action::Send(MasterMsg::State(Box::new((*job.state).clone()))));
             }
             // The scheduler entered it when it handed it out; entered here if not.
-            let (frame, set) = (job.frame, job.set);
-            held.hand(self.id, HeldJob { frame, set, version, handed_at: now });
+            let (frame, set, resolution) = (job.frame, job.set, job.state.resolution);
+            held.hand(self.id, HeldJob { frame, set, version, resolution, handed_at: now });
             out.push(Action::Send(MasterMsg::Job {
                 frame: job.frame,
                 set: job.set,
@@ -95,7 +95,7 @@ impl ProtocolState {
         r: JobResult,
         out: &mut Vec<Action>,
     ) -> Result<(), Rejection> {
-        let sets = self.config.sets.sets();
+        let sets = self.config.sets.config().sets;
         if r.set >= sets {
             return Err(Rejection::SetRange { set: r.set, sets });
         }
@@ -115,7 +115,8 @@ impl ProtocolState {
             let (got, job) = (r.state_version, job.version);
             return Err(Rejection::StateVersion { frame, set, got, job });
         }
-        let set_len = self.config.sets.set_len(r.set);
+        // Its state's resolution was checked against S before any job named it.
+        let set_len = self.config.sets.checked(job.resolution).set_len(r.set);
         if r.radiance.len() != set_len {
             return Err(Rejection::PixelCount { frame, set, got: r.radiance.len(), set_len });
         }

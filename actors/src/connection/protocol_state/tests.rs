@@ -5,7 +5,7 @@ use crate::scene::asset_store::AssetStore;
 use crate::scene::state::{Camera, Resolution, SceneState};
 use crate::shared::holdings::HeldJobs;
 use crate::shared::job::Job;
-use crate::shared::sets::SetTable;
+use crate::shared::sets::SetTables;
 use crate::shared::workers::WorkerTable;
 use crate::wire::auth;
 use crate::wire::channel::{initiate, ChannelError, Psk};
@@ -14,12 +14,14 @@ use crate::wire::protocol::{PackedRadiance, Partition, SetsConfig};
 use glam::Vec3;
 
 const SECRET: &[u8] = b"shared";
+/// The image size of every job's state here.
+const RES: Resolution = Resolution { width: 8, height: 4 };
 
 fn config(secret: Option<&[u8]>) -> Arc<ConnectionConfig> {
     let sets = SetsConfig { sets: 4, partition: Partition::QuasiRandom };
     Arc::new(ConnectionConfig {
         secret: secret.map(<[u8]>::to_vec),
-        sets: Arc::new(SetTable::new(Resolution { width: 8, height: 4 }, sets).expect("sets")),
+        sets: Arc::new(SetTables::new(RES, sets).expect("sets")),
         assets: Arc::new(AssetStore::new()),
         pipeline: 2,
         heartbeat: Duration::from_secs(1),
@@ -59,7 +61,7 @@ fn welcomed(now: Instant) -> (ProtocolState, ResultKey) {
 fn job(frame: FrameNo, set: SetNo, version: StateVersion) -> Job {
     let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 40.0);
     let state =
-        SceneState { version, ..SceneState::empty(Resolution { width: 8, height: 4 }, camera) };
+        SceneState { version, ..SceneState::empty(RES, camera) };
     Job { frame, set, state: Arc::new(state), spp: 3 }
 }
 
@@ -70,7 +72,7 @@ fn answer(
     set: SetNo,
     v: StateVersion,
 ) -> WorkerMsg {
-    let pixels = s.config.sets.set_len(set);
+    let pixels = s.config.sets.checked(RES).set_len(set);
     let radiance = PackedRadiance::Rgb9e5(vec![0; pixels]);
     WorkerMsg::Result(key.seal(frame, set, v, radiance, 10))
 }
