@@ -239,7 +239,13 @@ mod tests {
         let covered: Vec<usize> = (0..64).filter(|p| mask[*p]).collect();
         assert_eq!(
             covered,
-            t.sets.checked(Resolution { width: 8, height: 8 }).pixels(1).unwrap().iter().map(|p| *p as usize).collect::<Vec<_>>()
+            t.sets
+                .checked(Resolution { width: 8, height: 8 })
+                .pixels(1)
+                .unwrap()
+                .iter()
+                .map(|p| *p as usize)
+                .collect::<Vec<_>>()
         );
         assert!(covered.iter().all(|p| radiance[*p] == Vec3::splat(2.0)));
     }

@@ -75,6 +75,12 @@ pub struct MaterialEdit {
     pub roughness: Option<f32>,
     pub ior: Option<f32>,
     pub emission: Option<Vec3>,
+    /// glTF's `KHR_materials_emissive_strength`: a factor on `emission`.
+    pub emission_strength: Option<f32>,
+    /// `Pbr`: 0 dielectric, 1 metal.
+    pub metallic: Option<f32>,
+    /// `Pbr`: the share of the dielectric base that refracts.
+    pub transmission: Option<f32>,
 }
 
 /// Fields of the environment to change.
@@ -135,6 +141,16 @@ pub fn apply(state: &mut SceneState, edit: &Edit) -> Result<(), EditError> {
             if let Some(i) = m.ior.filter(|i| !(i.is_finite() && *i >= 1.0)) {
                 return Err(bad("material ior", "at least 1", i));
             }
+            for (field, value) in
+                [("material metallic", m.metallic), ("material transmission", m.transmission)]
+            {
+                if let Some(v) = value.filter(|v| !(0.0..=1.0).contains(v)) {
+                    return Err(bad(field, "in 0..=1", v));
+                }
+            }
+            if let Some(s) = m.emission_strength.filter(|s| !(s.is_finite() && *s >= 0.0)) {
+                return Err(bad("material emission_strength", "finite and non-negative", s));
+            }
             let mat = state
                 .materials
                 .iter_mut()
@@ -145,6 +161,9 @@ pub fn apply(state: &mut SceneState, edit: &Edit) -> Result<(), EditError> {
             set(&mut mat.roughness, m.roughness);
             set(&mut mat.ior, m.ior);
             set(&mut mat.emission, m.emission);
+            set(&mut mat.emission_strength, m.emission_strength);
+            set(&mut mat.metallic, m.metallic);
+            set(&mut mat.transmission, m.transmission);
             Ok(())
         }
         Edit::Light { index, light } => {
@@ -246,7 +265,7 @@ fn bad(field: &'static str, expected: &'static str, value: impl std::fmt::Debug)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::state::{Geometry, Material, Object, Resolution};
+    use crate::scene::state::{Geometry, Material, Object};
 
     fn scene() -> SceneState {
         let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 45.0);
@@ -280,6 +299,42 @@ mod tests {
         .expect("camera");
         assert_eq!(s.camera.position.z, 5.0);
         assert_eq!(s.camera.look_at, before.camera.look_at);
+    }
+
+    #[test]
+    fn pbr_parameters_and_the_resolution_are_edited_and_checked() {
+        let mut s = scene();
+        let pbr = |metallic, transmission, emission_strength| {
+            Edit::Material(MaterialEdit {
+                name: "white".into(),
+                kind: Some(MaterialKind::Pbr),
+                metallic: Some(metallic),
+                transmission: Some(transmission),
+                emission_strength: Some(emission_strength),
+                ..Default::default()
+            })
+        };
+        apply(&mut s, &pbr(1.0, 0.25, 3.0)).expect("a metal");
+        let m = &s.materials[0];
+        assert_eq!(
+            (m.kind, m.metallic, m.transmission, m.emission_strength),
+            (MaterialKind::Pbr, 1.0, 0.25, 3.0)
+        );
+        let before = s.clone();
+        for bad_edit in [pbr(1.5, 0.0, 1.0), pbr(0.0, -0.1, 1.0), pbr(0.0, 0.0, f32::NAN)] {
+            assert!(matches!(apply(&mut s, &bad_edit), Err(EditError::BadValue { .. })));
+        }
+        let size = Resolution { width: 1920, height: 1080 };
+        apply(&mut s, &Edit::Resolution(size)).expect("1080p");
+        assert_eq!(s.resolution, size);
+        for bad_size in [(0, 10), (10, Resolution::MAX_SIDE + 1)] {
+            let r = Resolution { width: bad_size.0, height: bad_size.1 };
+            assert!(matches!(
+                apply(&mut s, &Edit::Resolution(r)),
+                Err(EditError::Resolution { .. })
+            ));
+        }
+        assert_eq!(s, SceneState { resolution: size, ..before });
     }
 
     #[test]

@@ -86,7 +86,13 @@ mod tests {
     use super::*;
 
     fn job(frame: FrameNo, set: SetNo, at: Instant) -> HeldJob {
-        HeldJob { frame, set, version: 1, resolution: Resolution { width: 8, height: 8 }, handed_at: at }
+        HeldJob {
+            frame,
+            set,
+            version: 1,
+            resolution: Resolution { width: 8, height: 8 },
+            handed_at: at,
+        }
     }
 
     #[test]

@@ -123,7 +123,11 @@ impl App {
         let Some(follow) = &mut self.follow else { return false };
         let current = self.scene.resolution;
         if let Some(size) = follow.observe(area.width, area.height, current, Instant::now()) {
-            tracing::info!(width = size.width, height = size.height, "render size follows the window");
+            tracing::info!(
+                width = size.width,
+                height = size.height,
+                "render size follows the window"
+            );
             self.edit(WindowEdit::Resolution(size));
         }
         self.follow.as_ref().is_some_and(FollowWindow::is_pending)

@@ -60,8 +60,7 @@ fn welcomed(now: Instant) -> (ProtocolState, ResultKey) {
 
 fn job(frame: FrameNo, set: SetNo, version: StateVersion) -> Job {
     let camera = Camera::pinhole(Vec3::Z, Vec3::ZERO, 40.0);
-    let state =
-        SceneState { version, ..SceneState::empty(RES, camera) };
+    let state = SceneState { version, ..SceneState::empty(RES, camera) };
     Job { frame, set, state: Arc::new(state), spp: 3 }
 }
 
