@@ -40,6 +40,13 @@ fn every_wgsl_file_validates() {
         // pass, the window's blit); reconstruction passes need the common block.
         if path.parent().is_some_and(|p| p.ends_with("trace")) {
             // The path tracer's files are parts of one module: validated assembled below.
+        } else if path.parent().is_some_and(|p| p.ends_with("svgf")) {
+            // SVGF's passes follow both common blocks; its own common follows the first.
+            if path.file_name().is_some_and(|n| n == "common.wgsl") {
+                validate(&name, &format!("{common}\n{source}"));
+            } else {
+                validate(&name, &gridlight::reconstruct::svgf::gpu::with_common(&source));
+            }
         } else if path.file_name().is_some_and(|n| n == "common.wgsl")
             || source.contains("// standalone")
         {
@@ -60,6 +67,13 @@ fn compiled_in_sources_are_the_files() {
     for (name, source) in gridlight::reconstruct::pass::WGSL {
         let on_disk = std::fs::read_to_string(dir.join(name)).expect("pass file exists");
         assert_eq!(on_disk, source, "{name}");
+    }
+    let svgf = dir.join("svgf");
+    let common = std::fs::read_to_string(svgf.join("common.wgsl")).expect("svgf common");
+    assert_eq!(common, gridlight::reconstruct::svgf::gpu::COMMON_WGSL);
+    for (name, source) in gridlight::reconstruct::svgf::gpu::WGSL {
+        let on_disk = std::fs::read_to_string(svgf.join(name)).expect("svgf pass file exists");
+        assert_eq!(on_disk, source, "svgf/{name}");
     }
 }
 

@@ -53,7 +53,8 @@ pub enum EvalCommand {
 #[derive(Debug, Clone, clap::Args)]
 pub struct MotionArgs {
     /// Scenes (built-in names, `scenes/NAME.toml` or files); those whose assets are
-    /// missing are skipped with a note.
+    /// missing are skipped with a note. Each is reconstructed with its own
+    /// `[render.reconstruction]`, the method taken from `--methods`.
     #[arg(long, value_delimiter = ',', default_values_t = vec!["cornell-box".to_string(), "bunny".to_string(), "sponza".to_string()])]
     pub scenes: Vec<String>,
     /// Methods compared.
@@ -261,7 +262,8 @@ fn motion(args: MotionArgs, global: &GlobalArgs) -> anyhow::Result<()> {
         };
         let mut state = loaded.state;
         state.resolution = res;
-        let results = motion_eval::run(Arc::new(loaded.assets), &state, &script, &args.methods)?;
+        let (assets, params) = (Arc::new(loaded.assets), loaded.reconstruction);
+        let results = motion_eval::run(assets, &state, &script, &args.methods, params)?;
         for r in results {
             if args.json {
                 println!(

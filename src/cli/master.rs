@@ -97,7 +97,7 @@ pub struct DisplayArgs {
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     pub reconstruct: Backend,
     /// The reconstruction: the paper's filter, or reprojected history with variance-guided
-    /// à-trous filtering (svgf, CPU only).
+    /// à-trous filtering (svgf).
     #[arg(long, value_enum)]
     pub reconstruction: Option<crate::reconstruct::Method>,
     /// Discontinuity threshold α on the cosine between normals.

@@ -9,6 +9,10 @@
 //! shares it ([`GpuReconstructor::reconstruct_on_device`]). Running sums ping-pong
 //! between two textures; history lives in texture arrays; each frame's colour and
 //! display image go to a target of their own (`display_target`).
+//!
+//! With `--reconstruction svgf` the SVGF passes (`svgf::gpu`) take the place of
+//! accumulate, temporal and Gaussian; uploads, fill, remodulate, targets and read-back
+//! stay the same.
 
 use std::sync::Arc;
 
@@ -17,7 +21,10 @@ use super::display_target::{DisplayTarget, TargetPool};
 use super::history::HistoryRing;
 use super::params::MAX_HISTORY;
 use super::pass::{self, PassConsts, Uniforms};
+use super::svgf::gpu::{Shared, SvgfGpu};
+use super::svgf::Method;
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
+use crate::gbuffer::NO_OBJECT;
 use crate::gpu::compute::ComputePass;
 use crate::gpu::readback::{map_read_blocking, Staging};
 use crate::gpu::{GpuContext, GpuError};
@@ -68,6 +75,17 @@ impl Textures {
 
     /// Remodulate's bind groups into a target's `colour` and `display` views: `[0]` from
     /// the filtered radiance, `[1]` from the filled one.
+    /// What the SVGF passes share with the paper's.
+    fn shared(&self) -> Shared<'_> {
+        Shared {
+            normal: &self.normal,
+            position: &self.position,
+            samples: &self.samples,
+            filled: &self.filled,
+            images: [&self.blended, &self.filtered],
+        }
+    }
+
     fn remodulate(
         &self,
         device: &wgpu::Device,
@@ -245,6 +263,8 @@ pub struct GpuReconstructor {
     passes: Passes,
     textures: Textures,
     groups: BindGroups,
+    /// The SVGF passes, with `--reconstruction svgf`.
+    svgf: Option<Box<SvgfGpu>>,
     /// Colour and display images of frames, one per frame still held by someone.
     targets: TargetPool,
     staging: [Staging; 3],
@@ -273,6 +293,7 @@ impl GpuReconstructor {
         let passes = Passes::new(device);
         let textures = Textures::new(device, width, height);
         let groups = BindGroups::new(device, &passes, &textures, &uniforms);
+        let svgf = Self::svgf(device, &params, (width, height), &passes, &uniforms, &textures);
         if let Some(err) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Validation(err.to_string()).into());
         }
@@ -289,12 +310,28 @@ impl GpuReconstructor {
             passes,
             textures,
             groups,
+            svgf,
             targets: TargetPool::default(),
             staging,
             timer,
             last_gpu_ms: None,
             read_backs: 0,
             ctx,
+        })
+    }
+
+    /// The SVGF passes when `params` ask for them.
+    fn svgf(
+        device: &wgpu::Device,
+        params: &ReconstructParams,
+        size: (u32, u32),
+        passes: &Passes,
+        uniforms: &wgpu::Buffer,
+        textures: &Textures,
+    ) -> Option<Box<SvgfGpu>> {
+        (params.method == Method::Svgf).then(|| {
+            let shared = textures.shared();
+            Box::new(SvgfGpu::new(device, params.svgf, size, &passes.fill, uniforms, &shared))
         })
     }
 
@@ -311,6 +348,8 @@ impl GpuReconstructor {
         let device = &self.ctx.device;
         self.textures = Textures::new(device, width, height);
         self.groups = BindGroups::new(device, &self.passes, &self.textures, &self.uniforms);
+        let (p, u, t) = (&self.passes, &self.uniforms, &self.textures);
+        self.svgf = Self::svgf(device, &self.params, (width, height), p, u, t);
         self.staging = Self::stagings(device, width, height);
         self.targets.clear();
         (self.width, self.height) = (width, height);
@@ -343,6 +382,7 @@ impl GpuReconstructor {
     pub fn reconstruct(&mut self, inputs: &FrameInputs) -> Result<Reconstructed, ReconstructError> {
         let (target, mode, mut encoder) = self.encode(inputs)?;
         let result = match mode {
+            _ if self.svgf.is_some() => &self.textures.filtered,
             Mode::Interacting => &self.textures.filtered,
             Mode::Accumulating { .. } => &self.textures.filled,
         };
@@ -371,7 +411,7 @@ impl GpuReconstructor {
 
     /// Uploads one frame's inputs and records its passes and history copies into a new
     /// encoder, not yet submitted; returns the target written and the frame's mode (the
-    /// reconstructed radiance is `filtered` while interacting, else `filled`).
+    /// reconstructed radiance is `filtered` while interacting or with SVGF, else `filled`).
     fn encode(
         &mut self,
         inputs: &FrameInputs,
@@ -402,19 +442,28 @@ impl GpuReconstructor {
         };
         let (w, h, k) = (self.width, self.height, self.parity);
         let b = &self.groups;
-        p.accumulate.encode(&mut encoder, &b.accumulate[k], w, h, stamp(true));
-        p.fill.encode(&mut encoder, &b.fill[k], w, h, None);
-        let remodulate = if mode == Mode::Interacting {
-            p.temporal.encode(&mut encoder, &b.temporal, w, h, None);
-            p.gaussian.encode(&mut encoder, &b.gaussian, w, h, None);
+        let remodulate = if let Some(svgf) = &mut self.svgf {
+            let queue = &self.ctx.queue;
+            let shared = t.shared();
+            svgf.encode(device, queue, &mut encoder, inputs, &p.fill, u, &shared, stamp(true));
             &target.remodulate[0]
         } else {
-            &target.remodulate[1]
+            p.accumulate.encode(&mut encoder, &b.accumulate[k], w, h, stamp(true));
+            p.fill.encode(&mut encoder, &b.fill[k], w, h, None);
+            if mode == Mode::Interacting {
+                p.temporal.encode(&mut encoder, &b.temporal, w, h, None);
+                p.gaussian.encode(&mut encoder, &b.gaussian, w, h, None);
+                &target.remodulate[0]
+            } else {
+                &target.remodulate[1]
+            }
         };
         p.remodulate.encode(&mut encoder, remodulate, w, h, stamp(false));
         self.parity = 1 - k;
 
-        if let Some(slot) = self.ring.push(inputs.frame) {
+        // SVGF keeps its own history: the paper's past frames are not needed.
+        let slot = if self.svgf.is_none() { self.ring.push(inputs.frame) } else { None };
+        if let Some(slot) = slot {
             for (src, dst) in [
                 (&t.filled, &t.past_radiance),
                 (&t.normal, &t.past_normal),
@@ -447,15 +496,17 @@ impl GpuReconstructor {
         if self.gbuffer_version != Some(inputs.state_version) {
             let g = inputs.gbuffer;
             let t = &self.textures;
-            for (texture, plane) in [
-                (&t.normal, &g.normal),
-                (&t.position, &g.position),
-                (&t.albedo, &g.albedo),
-                (&t.emission, &g.emission),
-            ] {
+            for (texture, plane) in
+                [(&t.normal, &g.normal), (&t.albedo, &g.albedo), (&t.emission, &g.emission)]
+            {
                 let texels: Vec<[f32; 4]> = plane.iter().map(|v| [v.x, v.y, v.z, 0.0]).collect();
                 self.upload(texture, &texels);
             }
+            // w: the object's index (−1 for none), which SVGF's reprojection compares.
+            let texels: Vec<[f32; 4]> = (g.position.iter().zip(&g.object))
+                .map(|(v, &o)| [v.x, v.y, v.z, if o == NO_OBJECT { -1.0 } else { o as f32 }])
+                .collect();
+            self.upload(&t.position, &texels);
             self.gbuffer_version = Some(inputs.state_version);
         }
     }

@@ -161,7 +161,7 @@ impl Reconstructed {
 pub enum Reconstructor {
     Cpu(CpuReconstructor),
     Gpu(Box<GpuReconstructor>),
-    /// SVGF (`params.method`), on the CPU.
+    /// SVGF (`params.method`) on the CPU; on the GPU it is a [`GpuReconstructor`]'s.
     Svgf(Box<SvgfReconstructor>),
 }
 
@@ -196,17 +196,16 @@ impl Reconstructor {
                 Ok(ctx)
             }
         };
-        if params.method == Method::Svgf {
-            if backend == Backend::Gpu {
-                return Err(ReconstructError::BadParam {
-                    name: "method",
-                    why: "svgf runs on the CPU only: use --reconstruct cpu or auto".into(),
-                });
-            }
-            return Ok(Self::Svgf(Box::new(SvgfReconstructor::new(width, height, params)?)));
-        }
+        let cpu = || -> Result<Self, ReconstructError> {
+            Ok(match params.method {
+                Method::Paper => Self::Cpu(CpuReconstructor::new(width, height, params)?),
+                Method::Svgf => {
+                    Self::Svgf(Box::new(SvgfReconstructor::new(width, height, params)?))
+                }
+            })
+        };
         match (backend, device) {
-            (Backend::Cpu, _) => Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?)),
+            (Backend::Cpu, _) => cpu(),
             (Backend::Gpu, Some(ctx)) => gpu(Ok(ctx)),
             (Backend::Gpu, None) => gpu(GpuContext::new().map(Arc::new)),
             (Backend::Auto, device) => {
@@ -216,7 +215,7 @@ impl Reconstructor {
                 };
                 gpu(ctx).or_else(|err| {
                     tracing::info!(cause = %err, "GPU reconstruction unavailable, using the CPU");
-                    Ok(Self::Cpu(CpuReconstructor::new(width, height, params)?))
+                    cpu()
                 })
             }
         }

@@ -5,7 +5,9 @@
 //! 1. on a new scene state, [`reproject`] the history (demodulated sample sums, counts
 //!    and luminance moments) from the previous state's pixels through the known camera
 //!    and object motion, rejecting what the previous G-buffer shows as another surface
-//!    (disocclusions); then the frame's samples are added. An unchanged state keeps
+//!    (disocclusions); after an edit of the lighting or a moved object, where the frame's
+//!    new samples show that the light changed, the history is rescaled ([`gradient`]);
+//!    then the frame's samples are added. An unchanged state keeps
 //!    accumulating without a cap, so a resting view converges to the unbiased mean as
 //!    the paper's accumulation does;
 //! 2. the paper's fill (`pass::fill`) for pixels still without samples (lost jobs,
@@ -15,7 +17,8 @@
 //! 5. the paper's remodulation (`pass::remodulate`).
 //!
 //! The edge-stopping weights are `edges.rs`; the parameters and the method switch
-//! `params.rs`. CPU only: the kernels run in rows over every core (`reconstruct::rows`).
+//! `params.rs`; the temporal gradient `gradient.rs`. The CPU kernels run in rows over every
+//! core (`reconstruct::rows`); `gpu.rs` runs the same steps in WGSL inside the GPU pipeline.
 
 use glam::Vec4;
 use gridlight_actors::state::{SceneState, StateVersion};
@@ -23,6 +26,8 @@ use rayon::prelude::*;
 
 pub mod atrous;
 pub mod edges;
+pub mod gpu;
+pub mod gradient;
 pub mod params;
 pub mod reproject;
 pub mod variance;
@@ -30,6 +35,7 @@ pub mod variance;
 pub use params::{Method, SvgfParams};
 
 use self::edges::Edges;
+use self::gradient::Gradient;
 use self::reproject::{Moments, Motion, PreviousGuide};
 use self::variance::MomentPlanes;
 use super::pass::{self, FillInputs, Outputs, PassConsts};
@@ -37,13 +43,47 @@ use super::planes::{GuidePlanes, Layout, Plane, Planes3};
 use super::{FrameInputs, Mode, ReconstructError, ReconstructParams, Reconstructed};
 use crate::gbuffer::NO_OBJECT;
 
-/// The previous frame, which the next state's history is reprojected from.
+/// The state the history was last carried to, which decides what a new state does to it:
+/// the one decision both pipelines (this CPU one and the GPU's, `gpu.rs`) take.
+#[derive(Debug, Default)]
+pub struct Follower {
+    /// Its version, and its scene state when the caller gave one.
+    previous: Option<(StateVersion, Option<SceneState>)>,
+}
+
+/// What a frame's new scene state does to the history.
 #[derive(Debug)]
-struct Previous {
-    version: StateVersion,
-    /// Its scene state, when the caller gave one.
-    state: Option<SceneState>,
-    guide: PreviousGuide,
+pub enum Carry {
+    /// Nothing to carry it through (the first frame, an unknown motion): start empty.
+    Drop,
+    /// Reproject it through `motion`, each pixel counting for at most `cap` samples;
+    /// `gradient`: where the frame's samples disagree with it, rescale it ([`gradient`]).
+    Reproject { motion: Motion, cap: f32, gradient: bool },
+}
+
+impl Follower {
+    /// `None` while the state is the last one; else what to do, and the new state is kept.
+    pub fn follow(&mut self, inputs: &FrameInputs, sp: &SvgfParams) -> Option<Carry> {
+        if self.previous.as_ref().is_some_and(|(v, _)| *v == inputs.state_version) {
+            return None;
+        }
+        let motion = match (&self.previous, inputs.scene) {
+            (None, _) => None,
+            (Some((_, Some(prev))), Some(cur)) => Motion::between(prev, cur),
+            (Some(_), _) => {
+                let objects = inputs.gbuffer.object.iter().filter(|&&o| o != NO_OBJECT).max();
+                Some(Motion::still(objects.map_or(0, |&m| m as usize + 1)))
+            }
+        };
+        self.previous = Some((inputs.state_version, inputs.scene.cloned()));
+        Some(match motion {
+            Some(motion) => {
+                let cap = if motion.lighting_changed { sp.edit_samples } else { sp.motion_samples };
+                Carry::Reproject { gradient: motion.relights(), motion, cap }
+            }
+            None => Carry::Drop,
+        })
+    }
 }
 
 /// Reconstructs frames of one size with reprojected history and à-trous filtering, on
@@ -60,7 +100,10 @@ pub struct SvgfReconstructor {
     spare: Vec<Moments>,
     /// The history's sums as the fill reads them.
     accum: Vec<Vec4>,
-    previous: Option<Previous>,
+    follower: Follower,
+    /// The last state's G-buffer planes, which its successor reprojects from.
+    previous: PreviousGuide,
+    gradient: Gradient,
     guide: GuidePlanes,
     fill_inputs: FillInputs,
     moments: MomentPlanes,
@@ -86,7 +129,9 @@ impl SvgfReconstructor {
             history: vec![Moments::default(); n],
             spare: vec![Moments::default(); n],
             accum: vec![Vec4::ZERO; n],
-            previous: None,
+            follower: Follower::default(),
+            previous: PreviousGuide::default(),
+            gradient: Gradient::new(width, height),
             guide: GuidePlanes::new(&layout),
             fill_inputs: FillInputs::new(&layout),
             moments: MomentPlanes::new(&layout),
@@ -122,7 +167,9 @@ impl SvgfReconstructor {
         let layout = self.layout;
         let sp = self.params.svgf;
 
-        self.follow(inputs);
+        if self.follow(inputs) {
+            self.gradient.correct(&mut self.history, inputs.radiance, inputs.mask);
+        }
         self.history.par_iter_mut().zip(inputs.radiance).zip(inputs.mask).for_each(
             |((m, &v), &has)| {
                 if has {
@@ -168,37 +215,27 @@ impl SvgfReconstructor {
     }
 
     /// On a new scene state, carries the history over from the previous one (or drops it
-    /// where the motion is unknown) and keeps this frame's G-buffer for the next.
-    fn follow(&mut self, inputs: &FrameInputs) {
+    /// where the motion is unknown) and keeps this frame's G-buffer for the next; whether
+    /// the lighting may have changed (the temporal gradient's turn).
+    fn follow(&mut self, inputs: &FrameInputs) -> bool {
         let g = inputs.gbuffer;
-        if self.previous.as_ref().is_some_and(|p| p.version == inputs.state_version) {
-            return;
-        }
-        let sp = self.params.svgf;
-        let motion = match (&self.previous, inputs.scene) {
-            (None, _) => None,
-            (Some(Previous { state: Some(prev), .. }), Some(cur)) => Motion::between(prev, cur),
-            (Some(_), _) => {
-                let objects = g.object.iter().filter(|&&o| o != NO_OBJECT).max();
-                Some(Motion::still(objects.map_or(0, |&m| m as usize + 1)))
+        let Some(carry) = self.follower.follow(inputs, &self.params.svgf) else {
+            return false;
+        };
+        let relit = match carry {
+            Carry::Reproject { motion, cap, gradient } => {
+                let (prev, history) = (&self.previous, &self.history);
+                reproject::reproject(&motion, prev, history, g, cap, &mut self.spare);
+                std::mem::swap(&mut self.history, &mut self.spare);
+                gradient
+            }
+            Carry::Drop => {
+                self.history.fill(Moments::default());
+                false
             }
         };
-        match (motion, &self.previous) {
-            (Some(motion), Some(prev)) => {
-                let cap = if motion.lighting_changed { sp.edit_samples } else { sp.motion_samples };
-                reproject::reproject(&motion, &prev.guide, &self.history, g, cap, &mut self.spare);
-                std::mem::swap(&mut self.history, &mut self.spare);
-            }
-            _ => self.history.fill(Moments::default()),
-        }
-        let previous = self.previous.get_or_insert_with(|| Previous {
-            version: inputs.state_version,
-            state: None,
-            guide: PreviousGuide::default(),
-        });
-        previous.version = inputs.state_version;
-        previous.state = inputs.scene.cloned();
-        previous.guide.keep(g);
+        self.previous.keep(g);
+        relit
     }
 }
 

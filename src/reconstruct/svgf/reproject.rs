@@ -107,6 +107,37 @@ impl Motion {
     }
 }
 
+impl Motion {
+    /// The previous camera for the GPU twin (`shaders/reconstruct/svgf/reproject.wgsl`):
+    /// origin | half_w, forward | half_h, right | width, up | height.
+    pub fn camera_vectors(&self) -> Option<[Vec4; 4]> {
+        self.camera.map(|c| {
+            let r = &c.rays;
+            [
+                r.origin.extend(r.half_w),
+                r.forward.extend(r.half_h),
+                r.right.extend(c.width),
+                r.up.extend(c.height),
+            ]
+        })
+    }
+
+    /// Per current object index: current-world to previous-world and its previous index.
+    pub fn objects(&self) -> &[Option<(Mat4, u32)>] {
+        &self.objects
+    }
+
+    /// Whether the light may have changed: an edit of the lighting, or an object that
+    /// moved (its shadow and light bounced off it moved too). The camera alone changes
+    /// only view-dependent shading.
+    pub fn relights(&self) -> bool {
+        let moved = |o: &Option<(Mat4, u32)>| {
+            o.as_ref().is_none_or(|(m, _)| !m.abs_diff_eq(Mat4::IDENTITY, 1e-5))
+        };
+        self.lighting_changed || self.objects.iter().any(moved)
+    }
+}
+
 /// A pinhole projection of world points to image positions in pixels (y down), the
 /// inverse of the G-buffer's primary rays through pixel centres (`render::camera`).
 #[derive(Clone, Copy, Debug)]
@@ -167,7 +198,7 @@ const SAME_NORMAL: f32 = 0.9;
 /// (or from the point itself, without a camera) is another surface.
 const SAME_PLANE_PIXELS: f32 = 2.0;
 /// Without a camera (nothing moved): the tolerance off the plane, in scene scales.
-const STILL_PLANE: f32 = 0.01;
+pub const STILL_PLANE: f32 = 0.01;
 /// Bilinear weight below which a reprojected pixel starts empty.
 const MIN_WEIGHT: f32 = 1e-3;
 

@@ -210,12 +210,14 @@ impl Renderer {
     }
 }
 
-/// Runs the script on `state` for each of `methods`.
+/// Runs the script on `state` for each of `methods`, with `params` otherwise (the scene
+/// file's `[render.reconstruction]`).
 pub fn run(
     assets: Arc<Assets>,
     state: &SceneState,
     script: &Script,
     methods: &[Method],
+    params: ReconstructParams,
 ) -> anyhow::Result<Vec<MethodResult>> {
     let res = state.resolution;
     let (w, h) = (res.width, res.height);
@@ -226,8 +228,7 @@ pub fn run(
     let mut reconstructors = methods
         .iter()
         .map(|&method| {
-            let params = ReconstructParams { method, ..Default::default() };
-            Reconstructor::new(w, h, params, Backend::Cpu, None)
+            Reconstructor::new(w, h, ReconstructParams { method, ..params }, Backend::Cpu, None)
         })
         .collect::<Result<Vec<_>, _>>()?;
     struct Track {
@@ -327,7 +328,8 @@ mod tests {
     fn svgf_keeps_the_rested_samples_through_an_orbit_and_beats_the_papers_filter() {
         let (assets, state) = crate::render::testscenes::cornell_box(96, 72);
         let script = Script { orbit_views: 3, gold_spp: 32, ..Script::full() };
-        let r = run(assets, &state, &script, &[Method::Paper, Method::Svgf]).expect("a run");
+        let methods = [Method::Paper, Method::Svgf];
+        let r = run(assets, &state, &script, &methods, Default::default()).expect("a run");
         let (paper, svgf) = (&r[0], &r[1]);
         eprintln!("{paper:?}\n{svgf:?}");
         assert_eq!((paper.method, svgf.method), ("paper", "svgf"));
