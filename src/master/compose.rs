@@ -36,7 +36,8 @@ use crate::gbuffer::{GBuffer, GBufferError, GBufferSource};
 use crate::gpu::{Backend, DeviceOffer};
 use crate::master::view::{self, View, ViewInputs};
 use crate::reconstruct::{
-    DeviceImage, ForDisplay, FrameInputs, ReconstructError, ReconstructParams, Reconstructor,
+    DeviceImage, ForDisplay, FrameInputs, Method, ReconstructError, ReconstructParams,
+    Reconstructor,
 };
 
 /// The G-buffers of a run's frames, shared with whoever picks objects in the shown frame's
@@ -169,6 +170,20 @@ impl Composer {
     pub fn with_window_device(mut self, offer: DeviceOffer) -> Self {
         self.window_device = Some(offer);
         self
+    }
+
+    /// The reconstruction method of the next frames.
+    pub fn method(&self) -> Method {
+        self.params.method
+    }
+
+    /// Switches the reconstruction method (the window's panel): the next frame starts a new
+    /// reconstructor, as one method's history means nothing to the other.
+    pub fn set_method(&mut self, method: Method) {
+        if method != self.params.method {
+            self.params.method = method;
+            self.reconstructor = None;
+        }
     }
 
     /// Frames read back from the GPU reconstruction so far.

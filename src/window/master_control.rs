@@ -28,15 +28,53 @@ use super::status::{StatusView, WorkerRow};
 use super::{MasterControl, ReadyFrame, UserEvent};
 use crate::master::compose::{Composer, SharedScene};
 use crate::master::view::View;
+use crate::reconstruct::Method;
 use crate::render;
 
-/// The view the window wants, shared with the sink (index into [`View::ALL`]).
-pub type SharedView = Arc<AtomicU8>;
+/// What the window's panel chooses for the next composed frames, shared with the sink.
+#[derive(Debug, Default)]
+pub struct ComposeChoice {
+    /// Index into [`View::ALL`].
+    view: AtomicU8,
+    /// Index into [`Method::ALL`].
+    method: AtomicU8,
+}
+
+impl ComposeChoice {
+    /// The view and the method the composer starts with.
+    pub fn new(view: View, method: Method) -> Self {
+        let choice = Self::default();
+        choice.set_view(view);
+        choice.set_method(method);
+        choice
+    }
+
+    pub fn view(&self) -> View {
+        View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default()
+    }
+
+    pub fn set_view(&self, view: View) {
+        let index = View::ALL.iter().position(|v| *v == view).unwrap_or(0);
+        self.view.store(index as u8, Ordering::Relaxed);
+    }
+
+    pub fn method(&self) -> Method {
+        Method::ALL.get(self.method.load(Ordering::Relaxed) as usize).copied().unwrap_or_default()
+    }
+
+    pub fn set_method(&self, method: Method) {
+        let index = Method::ALL.iter().position(|m| *m == method).unwrap_or(0);
+        self.method.store(index as u8, Ordering::Relaxed);
+    }
+}
+
+/// The panel's choices, shared by the window and its sink.
+pub type SharedChoice = Arc<ComposeChoice>;
 
 /// Frame sink that composes pictures for the window.
 pub struct WindowSink {
     composer: Composer,
-    view: SharedView,
+    choice: SharedChoice,
     frames: Arc<Latest<ReadyFrame>>,
     proxy: EventLoopProxy<UserEvent>,
 }
@@ -44,17 +82,19 @@ pub struct WindowSink {
 impl WindowSink {
     pub fn new(
         composer: Composer,
-        view: SharedView,
+        choice: SharedChoice,
         frames: Arc<Latest<ReadyFrame>>,
         proxy: EventLoopProxy<UserEvent>,
     ) -> Self {
-        Self { composer, view, frames, proxy }
+        Self { composer, choice, frames, proxy }
     }
 
     fn compose(&mut self, frame: &ShownFrame) -> Result<ReadyFrame, SinkError> {
-        let view =
-            View::ALL.get(self.view.load(Ordering::Relaxed) as usize).copied().unwrap_or_default();
-        let c = self.composer.compose(frame, view).map_err(|e| SinkError::Other(e.into()))?;
+        self.composer.set_method(self.choice.method());
+        let c = self
+            .composer
+            .compose(frame, self.choice.view())
+            .map_err(|e| SinkError::Other(e.into()))?;
         let image = FrameImage::from_composed(c.width, c.height, c.image)
             .ok_or_else(|| SinkError::Other("picture size does not match the frame".into()))?;
         let mut status = status_of(frame, self.composer.reconstructor().unwrap_or_default());
@@ -191,7 +231,7 @@ pub struct LiveMaster {
     state: SceneState,
     pacing: PacingChoice,
     scene: SharedScene,
-    view: SharedView,
+    choice: SharedChoice,
     script_path: PathBuf,
     /// Stops what else was started beside the master (the demo's local workers).
     on_shutdown: Option<Box<dyn FnOnce()>>,
@@ -208,7 +248,7 @@ impl LiveMaster {
         initial: SceneState,
         pacing: PacingChoice,
         scene: SharedScene,
-        view: SharedView,
+        choice: SharedChoice,
         script_path: PathBuf,
         on_shutdown: Option<Box<dyn FnOnce()>>,
     ) -> Self {
@@ -219,7 +259,7 @@ impl LiveMaster {
             initial,
             pacing,
             scene,
-            view,
+            choice,
             script_path,
             on_shutdown,
         }
@@ -263,8 +303,15 @@ impl MasterControl for LiveMaster {
     }
 
     fn set_view(&mut self, view: View) {
-        let index = View::ALL.iter().position(|v| *v == view).unwrap_or(0);
-        self.view.store(index as u8, Ordering::Relaxed);
+        self.choice.set_view(view);
+    }
+
+    fn method(&self) -> Method {
+        self.choice.method()
+    }
+
+    fn set_method(&mut self, method: Method) {
+        self.choice.set_method(method);
     }
 
     fn pick(&self, x: f32, y: f32) -> Option<u32> {
@@ -354,12 +401,12 @@ pub fn run_master_window(
     super::run(options, move |proxy, frames, offer| {
         let composer = composer.with_window_device(offer);
         let scene = composer.scene();
-        let view: SharedView = Arc::new(AtomicU8::new(0));
-        let sink = WindowSink::new(composer, Arc::clone(&view), frames, proxy);
+        let choice = Arc::new(ComposeChoice::new(View::default(), composer.method()));
+        let sink = WindowSink::new(composer, Arc::clone(&choice), frames, proxy);
         let handle = gridlight_actors::master::start(config, state.clone(), store, Box::new(sink))
             .map_err(|e| format!("cannot start the master: {e}"))?;
         let mut live =
-            LiveMaster::new(handle, state, pacing, scene, view, script_path, on_shutdown)
+            LiveMaster::new(handle, state, pacing, scene, choice, script_path, on_shutdown)
                 .reporting_to(live_report);
         let addr = live.handle.as_ref().map(|h| h.local_addr());
         if let Some(addr) = addr {

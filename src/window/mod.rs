@@ -54,6 +54,7 @@ pub mod status;
 
 use crate::gpu::DeviceOffer;
 use crate::master::view::View;
+use crate::reconstruct::Method;
 use edits::WindowEdit;
 use latest::Latest;
 use panel::PacingChoice;
@@ -93,6 +94,10 @@ pub trait MasterControl {
     fn set_pacing(&mut self, pacing: PacingChoice);
     /// Chooses the view the next composed frames show.
     fn set_view(&mut self, view: View);
+    /// The reconstruction method the master started with.
+    fn method(&self) -> Method;
+    /// Chooses the reconstruction method of the next composed frames.
+    fn set_method(&mut self, method: Method);
     /// The object (index into the state's objects) under render pixel (x, y) of the
     /// shown frame's scene.
     fn pick(&self, x: f32, y: f32) -> Option<u32>;

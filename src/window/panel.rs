@@ -12,6 +12,7 @@ use super::camera::CameraMode;
 use super::edits::{join_power, split_power, WindowEdit};
 use super::status::{human_bytes, StatusView};
 use crate::master::view::View;
+use crate::reconstruct::Method;
 use gridlight_actors::pacing::{Heuristic, Pacing};
 
 /// Pacing of frames as the panel edits it (paper §4.3).
@@ -67,6 +68,8 @@ pub enum ShotFormat {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PanelSettings {
     pub view: View,
+    /// The reconstruction of the frames shown.
+    pub method: Method,
     pub camera_mode: CameraMode,
     pub pacing: PacingChoice,
     pub shot_format: ShotFormat,
@@ -258,6 +261,12 @@ fn view_section(ui: &mut egui::Ui, settings: &mut PanelSettings, actions: &mut V
     ui.horizontal_wrapped(|ui| {
         for view in View::ALL {
             ui.selectable_value(&mut settings.view, view, view.label());
+        }
+    });
+    ui.horizontal_wrapped(|ui| {
+        ui.label("reconstruction:");
+        for method in Method::ALL {
+            ui.radio_value(&mut settings.method, method, method.name());
         }
     });
     ui.horizontal_wrapped(|ui| {

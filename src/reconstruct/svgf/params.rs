@@ -18,6 +18,9 @@ pub enum Method {
 }
 
 impl Method {
+    /// Every method, in the order the panel lists them.
+    pub const ALL: [Method; 2] = [Method::Paper, Method::Svgf];
+
     pub fn name(self) -> &'static str {
         match self {
             Method::Paper => "paper",

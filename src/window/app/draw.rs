@@ -86,6 +86,7 @@ impl App {
             self.master.edit(edit, at);
         }
         self.master.set_view(self.settings.view);
+        self.master.set_method(self.settings.method);
         if let Some(frame) = self.frames.take() {
             let now = Instant::now();
             self.fps.tick(now);

@@ -98,6 +98,7 @@ impl App {
         let scene = master.initial_state();
         let settings = PanelSettings {
             view: options.view,
+            method: master.method(),
             camera_mode: Default::default(),
             pacing: master.pacing(),
             shot_format: Default::default(),
