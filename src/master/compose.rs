@@ -440,6 +440,34 @@ mod tests {
     }
 
     #[test]
+    fn a_new_frame_size_and_a_method_switch_each_start_a_new_reconstructor() {
+        let (assets, state) = cornell();
+        let mut c =
+            Composer::new(assets, &state, ReconstructParams::default(), Backend::Cpu).unwrap();
+        let mut f = frame(&state, |i| i % 3 != 0);
+        // Noisy radiance: the two filters smooth it differently (a constant they would not).
+        for (i, r) in f.current.iter_mut().enumerate().filter(|(i, _)| i % 3 != 0) {
+            *r = Vec3::splat(0.1 + 0.2 * (i * 7 % 5) as f32);
+        }
+        let paper = c.compose(&f, View::Final).unwrap().image.into_host().unwrap().0;
+        // A resized window: the next state has another size, and its frame composes.
+        let resized = SceneState {
+            resolution: gridlight_actors::state::Resolution { width: 24, height: 10 },
+            version: state.version + 1,
+            ..state.clone()
+        };
+        let big = c.compose(&frame(&resized, |_| true), View::Final).unwrap();
+        assert_eq!((big.width, big.height, big.image.into_host().unwrap().0.len()), (24, 10, 240));
+        // The panel's switch: the same frame through SVGF is filtered differently.
+        assert_eq!(c.method(), Method::Paper);
+        c.set_method(Method::Svgf);
+        assert_eq!(c.method(), Method::Svgf);
+        let svgf = c.compose(&f, View::Final).unwrap().image.into_host().unwrap().0;
+        assert_eq!(svgf.len(), paper.len());
+        assert_ne!(svgf, paper, "svgf's filter is not the paper's");
+    }
+
+    #[test]
     fn bad_parameters_are_refused_before_any_frame() {
         let (assets, state) = cornell();
         let params = ReconstructParams { radius: 999, ..ReconstructParams::default() };
