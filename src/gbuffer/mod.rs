@@ -96,22 +96,33 @@ impl GBuffer {
     /// straight into its rows of the planes, which are allocated zeroed and so faulted in
     /// by the threads that write them.
     pub fn from_scene(scene: &RenderScene, scene_scale: f32) -> Self {
+        let mut g = Self::empty(0, 0, scene_scale);
+        g.trace(scene, scene_scale);
+        g
+    }
+
+    /// [`Self::from_scene`] into this G-buffer's planes, which it no longer needs: a moving
+    /// camera makes a G-buffer every frame, and fresh planes (about 100 MB at 1920×1080)
+    /// cost their page faults every time; planes of the right length are overwritten.
+    pub fn retrace(mut self, scene: &RenderScene, scene_scale: f32) -> Self {
+        self.trace(scene, scene_scale);
+        self
+    }
+
+    /// Every pixel's primary hit into the planes (see [`Self::from_scene`]).
+    fn trace(&mut self, scene: &RenderScene, scene_scale: f32) {
         let res = scene.state().resolution;
         let (w, n) = (res.width as usize, res.pixels());
-        let mut g = Self {
-            width: res.width,
-            height: res.height,
-            normal: bytemuck::zeroed_vec(n),
-            position: bytemuck::zeroed_vec(n),
-            albedo: bytemuck::zeroed_vec(n),
-            emission: bytemuck::zeroed_vec(n),
-            object: bytemuck::zeroed_vec(n),
-            scene_scale,
-        };
+        (self.width, self.height, self.scene_scale) = (res.width, res.height, scene_scale);
+        sized(&mut self.normal, n);
+        sized(&mut self.position, n);
+        sized(&mut self.albedo, n);
+        sized(&mut self.emission, n);
+        sized(&mut self.object, n);
         // About four bands per thread, to share out rows of unequal cost.
         let rows = res.height as usize;
         let band = rows.div_ceil(4 * rayon::current_num_threads()).max(1) * w;
-        g.bands(band).into_par_iter().for_each(|(first, mut band)| {
+        self.bands(band).into_par_iter().for_each(|(first, mut band)| {
             let mut hits = [PixelSample::default(); RUN];
             for start in (0..band.len()).step_by(RUN) {
                 let run = &mut hits[..RUN.min(band.len() - start)];
@@ -119,7 +130,6 @@ impl GBuffer {
                 band.write(start, run);
             }
         });
-        g
     }
 
     /// The planes cut into bands of `pixels` consecutive pixels, each with its first pixel.
@@ -177,6 +187,15 @@ impl GBuffer {
             return Err(GBufferError::BadScale(self.scene_scale));
         }
         Ok(())
+    }
+}
+
+/// Makes `v` `n` entries long, keeping its memory when it already is (its entries are
+/// all overwritten); new memory is zeroed, which the OS maps lazily, so the threads that
+/// write it fault it in, in parallel.
+fn sized<T: bytemuck::Zeroable>(v: &mut Vec<T>, n: usize) {
+    if v.len() != n {
+        *v = bytemuck::zeroed_vec(n);
     }
 }
 
@@ -404,7 +423,12 @@ impl GBufferSource {
                 if scene.state().version != state.version {
                     scene.set_state(state)?;
                 }
-                GBuffer::from_scene(scene, self.scale.get(state, &self.assets))
+                let scale = self.scale.get(state, &self.assets);
+                // The last G-buffer's planes, unless someone still holds it.
+                match self.current.take().and_then(|(_, g)| Arc::try_unwrap(g).ok()) {
+                    Some(old) => old.retrace(scene, scale),
+                    None => GBuffer::from_scene(scene, scale),
+                }
             }
         };
         let g = Arc::new(g);
@@ -449,6 +473,20 @@ mod tests {
             assert!(escaped > 0 && escaped < want.len(), "{escaped} rays escape");
             assert_eq!(g, GBuffer::from_samples(w, h, &want, 1.5), "{w}×{h}");
         }
+    }
+
+    #[test]
+    fn a_retraced_gbuffer_is_the_new_states_whatever_it_held() {
+        let (assets, mut state) = crate::render::testscenes::cornell_box(29, 17);
+        let scene = RenderScene::new(Arc::clone(&assets), &state).unwrap();
+        let first = GBuffer::from_scene(&scene, 1.0);
+        state.camera.position.x += 0.3;
+        state.version += 1;
+        let scene = RenderScene::new(assets, &state).unwrap();
+        let want = GBuffer::from_scene(&scene, 2.0);
+        assert_ne!(first, want, "the camera moved");
+        assert_eq!(first.clone().retrace(&scene, 2.0), want, "planes of the right size");
+        assert_eq!(GBuffer::empty(3, 2, 1.0).retrace(&scene, 2.0), want, "planes resized");
     }
 
     #[test]

@@ -20,6 +20,7 @@
 //! the view, so that the temporal history and the accumulation stay complete when the user
 //! switches back to the final view.
 
+use std::mem::take;
 use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
@@ -37,7 +38,7 @@ use crate::gpu::{Backend, DeviceOffer};
 use crate::master::view::{self, View, ViewInputs};
 use crate::reconstruct::{
     DeviceImage, ForDisplay, FrameInputs, Method, ReconstructError, ReconstructParams,
-    Reconstructor,
+    Reconstructed, Reconstructor,
 };
 
 /// The G-buffers of a run's frames, shared with whoever picks objects in the shown frame's
@@ -129,6 +130,8 @@ pub struct Composer {
     reconstructor: Option<(Reconstructor, (u32, u32))>,
     /// The shown frame's radiance divided by the G-buffer albedo (reused between frames).
     demodulated: Vec<Vec3>,
+    /// The CPU reconstruction's output, whose buffers that stay on the master are reused.
+    reconstructed: Reconstructed,
     /// The G-buffer of the state being accumulated, its emission as pixel area means.
     converging: Option<(StateVersion, Arc<GBuffer>)>,
     /// The window's device, once offered ([`Composer::with_window_device`]).
@@ -157,6 +160,7 @@ impl Composer {
             backend,
             reconstructor: None,
             demodulated: Vec::new(),
+            reconstructed: Reconstructed::empty(0),
             converging: None,
             window_device: None,
             display_device: None,
@@ -237,19 +241,24 @@ impl Composer {
             gbuffer: &g,
             scene: Some(&frame.state),
         };
-        let out = match &self.display_device {
-            Some(device) => reconstructor.reconstruct_for_display(&inputs, device)?,
-            None => ForDisplay::Host(reconstructor.reconstruct(&inputs)?),
-        };
-        timings.reconstruct_ms = ms(reconstructing);
-        if view == View::Final {
-            timings.compose_ms = ms(started);
-            let image = match out {
+        let image = match &self.display_device {
+            Some(device) => match reconstructor.reconstruct_for_display(&inputs, device)? {
                 ForDisplay::Host(out) => {
                     Image::Host { rgba: out.display, linear: Some(out.colour) }
                 }
                 ForDisplay::Device(image) => Image::Device(image),
-            };
+            },
+            None => {
+                let out = &mut self.reconstructed;
+                reconstructor.reconstruct_into(&inputs, out)?;
+                // The pictures leave with the frame; the radiance's buffer stays for the next.
+                let (rgba, linear) = (take(&mut out.display), take(&mut out.colour));
+                Image::Host { rgba, linear: Some(linear) }
+            }
+        };
+        timings.reconstruct_ms = ms(reconstructing);
+        if view == View::Final {
+            timings.compose_ms = ms(started);
             return Ok(Composed { width, height, image, timings });
         }
         let owner = if view == View::Workers {

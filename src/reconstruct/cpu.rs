@@ -2,9 +2,13 @@
 //! headless masters without an adapter.
 //!
 //! The passes work on planes with a border (`super::planes`). The G-buffer is split into
-//! planes once per frame and shared by every filter; the history ring keeps each past
-//! frame's planes, and a frame enters the ring by swapping buffers with the slot it
-//! replaces (whose buffers become the next frame's), so nothing is copied.
+//! planes once per scene state and shared by every filter; the history ring keeps each
+//! past frame's planes, and a frame enters the ring by swapping its radiance buffers with
+//! the slot it replaces (whose buffers become the next frame's) and sharing its guide, so
+//! nothing is copied, and a resting view, whose frames all have one state, splits its
+//! G-buffer once.
+
+use std::sync::Arc;
 
 use bytemuck::Zeroable;
 use glam::Vec4;
@@ -20,7 +24,8 @@ use gridlight_actors::state::StateVersion;
 struct Past {
     /// Filled radiance.
     radiance: Planes3,
-    guide: Guide,
+    /// Its G-buffer's planes, shared with the other frames of its scene state.
+    guide: Arc<Guide>,
 }
 
 /// G-buffer planes and the scene-state version they were split from: a frame of the same
@@ -36,15 +41,34 @@ impl Guide {
     fn new(layout: &Layout) -> Self {
         Self { planes: GuidePlanes::new(layout), version: None }
     }
+}
 
-    /// The planes of `inputs`' G-buffer, split unless they already hold its version.
+/// This frame's guide, and planes to split the next state's into.
+#[derive(Debug)]
+struct Guides {
+    current: Arc<Guide>,
+    /// The guide the ring let go of last, reused unless a slot still shares it.
+    spare: Option<Arc<Guide>>,
+}
+
+impl Guides {
+    /// The planes of `inputs`' G-buffer, split unless the current guide holds its version;
+    /// the planes split into are the current guide's unless a ring slot shares them, else
+    /// the spare's, else new ones.
     fn update(&mut self, inputs: &FrameInputs, layout: &Layout) -> &GuidePlanes {
-        if self.version != Some(inputs.state_version) {
+        if self.current.version != Some(inputs.state_version) {
+            if Arc::get_mut(&mut self.current).is_none() {
+                self.current = match self.spare.take() {
+                    Some(spare) if Arc::strong_count(&spare) == 1 => spare,
+                    _ => Arc::new(Guide::new(layout)),
+                };
+            }
+            let guide = Arc::get_mut(&mut self.current).expect("not shared");
             let g = inputs.gbuffer;
-            self.planes.split(&g.normal, &g.position, layout);
-            self.version = Some(inputs.state_version);
+            guide.planes.split(&g.normal, &g.position, layout);
+            guide.version = Some(inputs.state_version);
         }
-        &self.planes
+        &self.current.planes
     }
 }
 
@@ -61,7 +85,7 @@ pub struct CpuReconstructor {
     ring: HistoryRing,
     past: Vec<Past>,
     /// This frame's G-buffer.
-    guide: Guide,
+    guides: Guides,
     fill_inputs: FillInputs,
     filled: Planes3,
     blended: Planes3,
@@ -80,7 +104,7 @@ impl CpuReconstructor {
         let layout = Layout::new(width, height, pad);
         let ring = HistoryRing::new(params.history);
         let past = (0..ring.capacity())
-            .map(|_| Past { radiance: layout.zeroed3(), guide: Guide::new(&layout) })
+            .map(|_| Past { radiance: layout.zeroed3(), guide: Arc::new(Guide::new(&layout)) })
             .collect();
         Ok(Self {
             width,
@@ -90,7 +114,7 @@ impl CpuReconstructor {
             accum: vec![Vec4::ZERO; n],
             ring,
             past,
-            guide: Guide::new(&layout),
+            guides: Guides { current: Arc::new(Guide::new(&layout)), spare: None },
             fill_inputs: FillInputs::new(&layout),
             filled: layout.zeroed3(),
             blended: layout.zeroed3(),
@@ -124,9 +148,13 @@ impl CpuReconstructor {
         let mode = Mode::of(inputs.accumulated_frames);
         let reset = mode == Mode::Interacting;
 
-        let guide = self.guide.update(inputs, layout);
+        let mut clock = PassClock::start();
+        let guide = self.guides.update(inputs, layout);
+        clock.lap("guide");
         pass::accumulate(reset, inputs.radiance, inputs.mask, &mut self.accum, self.width);
+        clock.lap("accumulate");
         pass::fill(&self.accum, guide, &c, layout, &mut self.fill_inputs, &mut self.filled);
+        clock.lap("fill");
         let result = if mode == Mode::Interacting {
             let weights = self.ring.weights(inputs.frame);
             let past: Vec<PastFrame> = self
@@ -141,7 +169,9 @@ impl CpuReconstructor {
                 })
                 .collect();
             pass::temporal(&self.filled, guide, &past, &c, layout, &mut self.blended);
+            clock.lap("temporal");
             pass::gaussian(&self.blended, guide, &c, layout, &mut self.filtered);
+            clock.lap("gaussian");
             &self.filtered
         } else {
             &self.filled
@@ -155,13 +185,39 @@ impl CpuReconstructor {
             display: sized(&mut out.display, n),
         };
         pass::remodulate(result, layout, &g.albedo, &g.emission, &c, outputs);
+        clock.lap("remodulate");
+        clock.report(inputs.frame);
 
         if let Some(slot) = self.ring.push(inputs.frame) {
             let p = &mut self.past[slot];
             std::mem::swap(&mut p.radiance, &mut self.filled);
-            std::mem::swap(&mut p.guide, &mut self.guide);
+            let shared = Arc::clone(&self.guides.current);
+            self.guides.spare = Some(std::mem::replace(&mut p.guide, shared));
         }
         Ok(())
+    }
+}
+
+/// Milliseconds of each pass of one frame, logged at debug level (`RUST_LOG=debug`): where
+/// the reconstruction's time goes, without a profiler.
+struct PassClock {
+    last: std::time::Instant,
+    laps: Vec<(&'static str, f64)>,
+}
+
+impl PassClock {
+    fn start() -> Self {
+        Self { last: std::time::Instant::now(), laps: Vec::with_capacity(6) }
+    }
+
+    fn lap(&mut self, pass: &'static str) {
+        let now = std::time::Instant::now();
+        self.laps.push((pass, (now - self.last).as_secs_f64() * 1e3));
+        self.last = now;
+    }
+
+    fn report(&self, frame: u64) {
+        tracing::debug!(frame, passes_ms = ?self.laps, "cpu reconstruction");
     }
 }
 
@@ -214,5 +270,37 @@ mod tests {
         let short = FrameInputs { frame: 5, mask: &masks[0][1..], ..inputs(4) };
         into.reconstruct_into(&short, &mut out).expect_err("a short mask");
         assert_eq!(out.frame, 4, "an error leaves the output as it was");
+    }
+
+    #[test]
+    fn frames_of_one_state_share_one_split_of_its_gbuffer() {
+        let (w, h) = (20, 12);
+        let g = synthetic::gbuffer(w, h, SyntheticView::default());
+        let radiance = synthetic::clean_radiance(&g);
+        let mask = synthetic::random_mask(g.len(), 0.7, 1, 0);
+        let mut r = CpuReconstructor::new(w, h, ReconstructParams::default()).expect("valid");
+        let frame = |frame: u64, state_version: u64| FrameInputs {
+            frame,
+            state_version,
+            accumulated_frames: 1,
+            radiance: &radiance,
+            mask: &mask,
+            gbuffer: &g,
+            scene: None,
+        };
+        for f in 1..=3 {
+            r.reconstruct(&frame(f, f)).expect("moving");
+        }
+        let moving = r.guides.current.clone();
+        assert!(r
+            .past
+            .iter()
+            .all(|p| Arc::ptr_eq(&p.guide, &moving) == (p.guide.version == Some(3))));
+        for f in 4..=9 {
+            r.reconstruct(&frame(f, 4)).expect("resting");
+        }
+        let current = &r.guides.current;
+        assert_eq!(current.version, Some(4));
+        assert!(r.past.iter().all(|p| Arc::ptr_eq(&p.guide, current)), "one split, shared");
     }
 }

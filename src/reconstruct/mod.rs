@@ -230,6 +230,20 @@ impl Reconstructor {
         }
     }
 
+    /// [`Self::reconstruct`] into `out`, reusing the buffers it still has (a GPU
+    /// reconstructor's read-back replaces them).
+    pub fn reconstruct_into(
+        &mut self,
+        inputs: &FrameInputs,
+        out: &mut Reconstructed,
+    ) -> Result<(), ReconstructError> {
+        match self {
+            Self::Cpu(r) => r.reconstruct_into(inputs, out),
+            Self::Gpu(r) => r.reconstruct(inputs).map(|frame| *out = frame),
+            Self::Svgf(r) => r.reconstruct_into(inputs, out),
+        }
+    }
+
     /// Reconstructs one frame for a display on `device`: a GPU reconstructor on that
     /// device leaves it there; otherwise it comes to the CPU.
     pub fn reconstruct_for_display(

@@ -138,17 +138,19 @@ impl RowKernel<PlaneRow<'_>> for FillPass<'_> {
     fn row<I: Isa>(&self, y: usize, [r, g, b]: PlaneRow<'_>, _: &mut ()) {
         // The unchecked loads in `weighted_sum` rely on it.
         assert!(y < self.layout.height, "row {y} is outside the image");
-        let base = self.layout.index(0, y);
-        for (x, ((r, g), b)) in r.iter_mut().zip(g).zip(b).enumerate() {
+        let (base, w) = (self.layout.index(0, y), self.layout.width);
+        // The mean plane already holds every pixel's value but the holes' on a surface (a
+        // calculated pixel's mean, 0 where nothing was calculated): the row is copied at
+        // once, and only those holes are computed.
+        for (out, mean) in [&mut *r, &mut *g, &mut *b].into_iter().zip(self.mean) {
+            out.copy_from_slice(&mean[base..base + w]);
+        }
+        for (x, &calc) in self.calc[base..base + w].iter().enumerate() {
             let i = base + x;
-            let v = if self.calc[i] > 0.0 {
-                at(&self.mean, i)
-            } else if is_surface(at(&self.guide.normal, i)) {
-                self.missing::<I>(i)
-            } else {
-                Vec3::ZERO
-            };
-            (*r, *g, *b) = (v.x, v.y, v.z);
+            if calc <= 0.0 && is_surface(at(&self.guide.normal, i)) {
+                let v = self.missing::<I>(i);
+                (r[x], g[x], b[x]) = (v.x, v.y, v.z);
+            }
         }
     }
 }
