@@ -22,7 +22,7 @@ pub enum ResolutionError {
     Scale(String),
     #[error("--scale {scale} makes the {side} {value} pixels, over {MAX_RESOLUTION}")]
     ScaledOutOfRange { scale: f32, side: &'static str, value: u64 },
-    #[error("`{0}` is neither WIDTHxHEIGHT (for example 1920x1080) nor `window`")]
+    #[error("`{0}` is not WIDTHxHEIGHT (for example 1920x1080) or `window`")]
     SizeSyntax(String),
 }
 
@@ -176,7 +176,7 @@ mod tests {
         let fixed = "800x600".parse::<SizeArg>().expect("size").fixed().expect("fixed");
         assert_eq!(fixed.0, Resolution { width: 800, height: 600 });
         let err = "windows".parse::<SizeArg>().expect_err("not a size").to_string();
-        assert!(err.contains("neither WIDTHxHEIGHT") && err.contains("`window`"), "{err}");
+        assert!(err.contains("is not WIDTHxHEIGHT") && err.contains("`window`"), "{err}");
         let err = "0x5".parse::<SizeArg>().expect_err("out of range").to_string();
         assert!(err.contains("width 0 is not in 1..=16384"), "{err}");
     }

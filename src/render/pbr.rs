@@ -17,8 +17,9 @@
 //! no corner of the parameters returns more than it receives (`pbr/tests.rs`).
 //! `KHR_materials_transmission` replaces that share of the non-metal by rough glass: the
 //! existing dielectric ([`Bsdf`]'s glass, exact Fresnel, refraction through the surface),
-//! so a transmissive glTF object renders as the `Dielectric` kind does. The extension's thin-walled reading (light leaving without
-//! bending) is not what gridlight draws: closed meshes refract, as in Cycles.
+//! so a transmissive glTF object renders as the `Dielectric` kind does. The extension's
+//! thin-walled reading (light leaving without bending) is not what gridlight draws: closed
+//! meshes refract, as in Cycles.
 //!
 //! Sampling picks one of four lobes (Lambert, the dielectric's GGX layer, the metal's
 //! GGX, the glass) with probabilities from their estimated albedos at `wo`, samples it
