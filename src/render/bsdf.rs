@@ -16,7 +16,8 @@ use glam::{Vec2, Vec3};
 use gridlight_actors::state::MaterialKind;
 
 use super::microfacet::{
-    cosine_hemisphere, fresnel_dielectric, fresnel_schlick, reflect, refract, Ggx,
+    cosine_hemisphere, fresnel_dielectric, fresnel_schlick, reflect, refract,
+    sample_rough_dielectric, Ggx,
 };
 
 /// Scattering at one surface point.
@@ -263,21 +264,8 @@ impl Bsdf {
             let weight = self.color / (etap * etap);
             return Some(BsdfSample { wi, weight, pdf: 1.0, delta: true });
         }
-        let wm = self.ggx.sample_visible(wo, Vec2::new(u[1], u[2]));
-        let fr = fresnel_dielectric(wo.dot(wm), self.eta);
-        let wi = if u[0] < fr {
-            let wi = reflect(wo, wm);
-            if wi.z * wo.z <= 0.0 {
-                return None;
-            }
-            wi
-        } else {
-            let (wi, _) = refract(wo, wm, self.eta)?;
-            if wi.z * wo.z >= 0.0 {
-                return None;
-            }
-            wi
-        };
+        let u2 = Vec2::new(u[1], u[2]);
+        let wi = sample_rough_dielectric(self.ggx, self.eta, wo, u[0], u2)?;
         self.weighted(wo, wi)
     }
 }

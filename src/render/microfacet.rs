@@ -164,6 +164,28 @@ pub fn refract(w: Vec3, n: Vec3, eta: f32) -> Option<(Vec3, f32)> {
     Some((-w / eta + (cos_i / eta - cos_t) * n, eta))
 }
 
+/// A direction through a rough dielectric interface (the `Dielectric` kind and the glass
+/// lobe of `Pbr`): a GGX visible normal from `u2`, then reflection or refraction by exact
+/// Fresnel against `u0`; `None` when the direction ends on the wrong side.
+#[inline(always)]
+pub fn sample_rough_dielectric(ggx: Ggx, eta: f32, wo: Vec3, u0: f32, u2: Vec2) -> Option<Vec3> {
+    let wm = ggx.sample_visible(wo, u2);
+    let fr = fresnel_dielectric(wo.dot(wm), eta);
+    if u0 < fr {
+        let wi = reflect(wo, wm);
+        if wi.z * wo.z <= 0.0 {
+            return None;
+        }
+        Some(wi)
+    } else {
+        let (wi, _) = refract(wo, wm, eta)?;
+        if wi.z * wo.z >= 0.0 {
+            return None;
+        }
+        Some(wi)
+    }
+}
+
 /// Cosine-weighted direction on the upper hemisphere (concentric disc mapping).
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3 {

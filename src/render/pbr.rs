@@ -34,7 +34,9 @@ use std::f32::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3};
 
 use super::bsdf::{Bsdf, BsdfSample};
-use super::microfacet::{cosine_hemisphere, fresnel_dielectric, reflect, refract, Ggx};
+use super::microfacet::{
+    cosine_hemisphere, fresnel_dielectric, reflect, refract, sample_rough_dielectric, Ggx,
+};
 
 /// Smallest selection weight of a lobe the material mixes in at all: a black metal still
 /// reflects at grazing microfacets, so its lobe must stay sampleable.
@@ -216,21 +218,7 @@ impl Bsdf {
             let weight = self.color * (share / (etap * etap * lobes.glass));
             return Some(BsdfSample { wi, weight, pdf: lobes.glass * (1.0 - fr), delta: true });
         }
-        let wm = self.ggx.sample_visible(wo, u2);
-        let fr = fresnel_dielectric(wo.dot(wm), self.eta);
-        let wi = if u0 < fr {
-            let wi = reflect(wo, wm);
-            if wi.z * wo.z <= 0.0 {
-                return None;
-            }
-            wi
-        } else {
-            let (wi, _) = refract(wo, wm, self.eta)?;
-            if wi.z * wo.z >= 0.0 {
-                return None;
-            }
-            wi
-        };
+        let wi = sample_rough_dielectric(self.ggx, self.eta, wo, u0, u2)?;
         self.weighted(wo, wi)
     }
 
