@@ -235,6 +235,10 @@ fn a_capture_holds_none_of_the_scene_its_assets_jobs_or_pixels_and_looks_random(
     sealed.assert_no_violation();
 }
 
+/// The bit each flip inverts: the lowest, so that a flip meant for a length's low byte
+/// that lands on its high byte lengthens the record by 256 bytes, not 4 KiB.
+const FLIP_BITS: u8 = 0x01;
+
 /// Where a byte is flipped: a direction, an offset in a connection's stream, and what
 /// the side reading it must say.
 struct Flip {
@@ -269,12 +273,16 @@ fn flip_places(conn: &[Vec<u8>; 2]) -> Vec<Flip> {
     let mid = |(at, r): &(usize, &[u8])| at + 2 + r.len() / 2;
     vec![
         Flip { what: "inside a result", dir: Direction::Up, at: mid(results[2]) },
+        // The tag's middle byte, not its last: the worker's Hello differs by a few bytes
+        // between connections (it carries measured figures), so every later offset moves.
         Flip {
             what: "a result's tag",
             dir: Direction::Up,
-            at: results[1].0 + 1 + results[1].1.len(),
+            at: results[1].0 + 2 + results[1].1.len() - TAG_LEN / 2,
         },
-        // The length's low byte: the record ends 16 bytes off, inside the next one.
+        // The length's low byte: the record ends a byte off. Should the shift above land
+        // the flip on a high byte instead, FLIP_BITS keeps the error to 256 bytes, which
+        // the worker's next result supplies (0x10 there would wait for 4 KiB forever).
         Flip { what: "a result's record length", dir: Direction::Up, at: results[3].0 + 1 },
         Flip { what: "the first record (Hello)", dir: Direction::Up, at: mid(&up[0]) },
         Flip { what: "inside a job", dir: Direction::Down, at: mid(jobs[1]) },
@@ -296,7 +304,7 @@ fn a_flipped_byte_either_way_ends_that_connection_and_nothing_reaches_an_image()
     for (i, flip) in places.iter().enumerate() {
         let decrypt_before = grid.rejections("decrypt");
         let connections = grid.proxy.stats().connections.load(std::sync::atomic::Ordering::Relaxed);
-        grid.proxy.tamper_next(Tamper { dir: flip.dir, at: flip.at as u64, xor: 0x10 });
+        grid.proxy.tamper_next(Tamper { dir: flip.dir, at: flip.at as u64, xor: FLIP_BITS });
         let w = grid.worker(&format!("flip{i}"), None);
         match flip.dir {
             // The master reads it: a typed rejection, counted by kind.
