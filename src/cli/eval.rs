@@ -20,6 +20,7 @@ use crate::reconstruct::{Method, ReconstructParams};
 use crate::render::testscenes;
 use crate::scene::{self, AssetSearchPath, SceneSource};
 use crate::tools::eval::motion::Script;
+use crate::tools::eval::oidn::Oidn;
 use crate::tools::eval::{loss, motion as motion_eval, sequence};
 use crate::tools::eval::{FrameSource, RenderSource, SyntheticSource};
 
@@ -74,6 +75,28 @@ pub struct MotionArgs {
     /// One JSON line per scene and method (otherwise a short text summary).
     #[arg(long)]
     pub json: bool,
+    /// Intel Open Image Denoise as the external anchor (method `oidn`: complete frames
+    /// denoised by `scripts/oidn-anchor.py`): `auto` runs it when the interpreter has
+    /// `pyoidn` (`pip install pyoidn`), `on` fails without it.
+    #[arg(long, value_enum, default_value_t = AnchorChoice::Auto)]
+    pub oidn: AnchorChoice,
+    /// Samples per pixel of the anchor's complete input frames.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub oidn_spp: u32,
+    /// OIDN's threads (0: every core).
+    #[arg(long, default_value_t = 0)]
+    pub oidn_threads: u32,
+    /// The Python interpreter for the anchor.
+    #[arg(long, default_value = "python3")]
+    pub python: String,
+}
+
+/// Whether `eval motion` runs its external anchor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum AnchorChoice {
+    Auto,
+    On,
+    Off,
 }
 
 /// Arguments of `gridlight eval reconstruction`.
@@ -248,6 +271,16 @@ fn motion(args: MotionArgs, global: &GlobalArgs) -> anyhow::Result<()> {
     }
     let (w, h) = if args.quick { (320, 240) } else { (640, 480) };
     let res = Resolution { width: args.width.unwrap_or(w), height: args.height.unwrap_or(h) };
+    let oidn = Oidn { python: args.python.clone(), threads: args.oidn_threads };
+    let anchor = match (args.oidn, oidn.check()) {
+        (AnchorChoice::Off, _) => None,
+        (_, Ok(())) => Some(motion_eval::Anchor { oidn, spp: args.oidn_spp }),
+        (AnchorChoice::Auto, Err(err)) => {
+            eprintln!("eval motion: no OIDN anchor: {err:#}");
+            None
+        }
+        (AnchorChoice::On, Err(err)) => return Err(err.context("--oidn on")),
+    };
     for name in &args.scenes {
         let source = SceneSource::find(std::path::Path::new(name), &[scenes_dir()])
             .with_context(|| format!("finding scene `{name}`"))?;
@@ -263,7 +296,8 @@ fn motion(args: MotionArgs, global: &GlobalArgs) -> anyhow::Result<()> {
         let mut state = loaded.state;
         state.resolution = res;
         let (assets, params) = (Arc::new(loaded.assets), loaded.reconstruction);
-        let results = motion_eval::run(assets, &state, &script, &args.methods, params)?;
+        let results =
+            motion_eval::run(assets, &state, &script, &args.methods, params, anchor.as_ref())?;
         for r in results {
             if args.json {
                 println!(
@@ -275,12 +309,17 @@ fn motion(args: MotionArgs, global: &GlobalArgs) -> anyhow::Result<()> {
                         "cpu_ms": r.cpu_ms, "material_edit_flip": r.material_edit_flip,
                         "light_edit_flip": r.light_edit_flip, "orbit_flip": r.orbit_flip,
                         "width": res.width, "height": res.height, "script": script,
+                        "oidn_spp": (r.method == "oidn").then_some(args.oidn_spp),
                     })
                 );
             } else {
+                let method = match r.method {
+                    "oidn" => format!("oidn (complete {}-spp frames)", args.oidn_spp),
+                    m => m.to_string(),
+                };
                 println!(
-                    "{name} {}: first frame FLIP {:.4}, orbit mean {:.4}, material edit {:.4}, light edit {:.4}, stability {:.4}, {:.1} ms/frame",
-                    r.method, r.first_frame_flip, r.orbit_mean_flip, r.material_edit_flip,
+                    "{name} {method}: first frame FLIP {:.4}, orbit mean {:.4}, material edit {:.4}, light edit {:.4}, stability {:.4}, {:.1} ms/frame",
+                    r.first_frame_flip, r.orbit_mean_flip, r.material_edit_flip,
                     r.light_edit_flip, r.stability, r.cpu_ms
                 );
             }

@@ -29,6 +29,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::compare;
+use super::oidn::{Noisy, Oidn};
 use crate::assets::Assets;
 use crate::gbuffer::{scene_scale, GBuffer};
 use crate::gpu::Backend;
@@ -183,16 +184,22 @@ impl Renderer {
                 return Ok((Arc::clone(g), Arc::clone(gold)));
             }
         }
-        let mut gold_state = state.clone();
-        gold_state.render.spp = self.gold_spp;
-        self.scene.set_state(&gold_state)?;
-        let all: Vec<u32> = (0..state.resolution.pixels() as u32).collect();
-        let gold = self.render(&all, u64::MAX / 2);
-        self.scene.set_state(state)?;
+        let gold = Arc::new(self.complete(state, self.gold_spp, u64::MAX / 2)?);
         let g = Arc::new(GBuffer::from_scene(&self.scene, scene_scale(state, &self.assets)));
-        let gold = Arc::new(gold.iter().map(|s| s.reflected + s.emission).collect::<Vec<_>>());
         self.cached = Some((state.version, Arc::clone(&g), Arc::clone(&gold)));
         Ok((g, gold))
+    }
+
+    /// Every pixel of `state` with `spp` samples (reflected plus emitted radiance) of
+    /// frame `frame`'s seed; the scene is left at `state`.
+    fn complete(&mut self, state: &SceneState, spp: u32, frame: u64) -> anyhow::Result<Vec<Vec3>> {
+        let mut at_spp = state.clone();
+        at_spp.render.spp = spp;
+        self.scene.set_state(&at_spp)?;
+        let all: Vec<u32> = (0..state.resolution.pixels() as u32).collect();
+        let samples = self.render(&all, frame);
+        self.scene.set_state(state)?;
+        Ok(samples.iter().map(|s| s.reflected + s.emission).collect())
     }
 
     /// Samples of `pixels` (in order), on all cores.
@@ -211,13 +218,14 @@ impl Renderer {
 }
 
 /// Runs the script on `state` for each of `methods`, with `params` otherwise (the scene
-/// file's `[render.reconstruction]`).
+/// file's `[render.reconstruction]`), then the `anchor` (method `oidn`) if given.
 pub fn run(
     assets: Arc<Assets>,
     state: &SceneState,
     script: &Script,
     methods: &[Method],
     params: ReconstructParams,
+    anchor: Option<&Anchor>,
 ) -> anyhow::Result<Vec<MethodResult>> {
     let res = state.resolution;
     let (w, h) = (res.width, res.height);
@@ -231,25 +239,10 @@ pub fn run(
             Reconstructor::new(w, h, ReconstructParams { method, ..params }, Backend::Cpu, None)
         })
         .collect::<Result<Vec<_>, _>>()?;
-    struct Track {
-        orbit: Vec<f64>,
-        material: f64,
-        light: f64,
-        stability: Vec<f64>,
-        ms: Vec<f64>,
-        last: Option<Vec<Vec3>>,
-    }
-    let mut tracks: Vec<Track> = methods
-        .iter()
-        .map(|_| Track {
-            orbit: Vec::new(),
-            material: f64::NAN,
-            light: f64::NAN,
-            stability: Vec::new(),
-            ms: Vec::new(),
-            last: None,
-        })
-        .collect();
+    let mut tracks: Vec<Track> = methods.iter().map(|_| Track::default()).collect();
+    // The anchor's frames, denoised after the script: complete frames of the shown ones'
+    // states, each with its kind and reference.
+    let (mut anchor_frames, mut noisy) = (Vec::new(), Vec::new());
     let mut cursor = 0u32;
     let (mut radiance, mut demodulated) = (vec![Vec3::ZERO; res.pixels()], Vec::new());
     for (k, shown) in frames(state, script).iter().enumerate() {
@@ -279,36 +272,87 @@ pub fn run(
         for (r, t) in reconstructors.iter_mut().zip(&mut tracks) {
             let started = Instant::now();
             let out = r.reconstruct(&inputs)?;
-            t.ms.push(started.elapsed().as_secs_f64() * 1e3);
-            let flip = || compare(&gold, &out.colour, w, h, 0.0).flip;
-            match shown.kind {
-                Kind::Rest { first_rest: true } => {
-                    if let Some(last) = &t.last {
-                        t.stability.push(compare(last, &out.colour, w, h, 0.0).flip);
-                    }
-                }
-                Kind::Rest { first_rest: false } => {}
-                Kind::Orbit => t.orbit.push(flip()),
-                Kind::MaterialEdit => t.material = flip(),
-                Kind::LightEdit => t.light = flip(),
-            }
-            t.last = matches!(shown.kind, Kind::Rest { first_rest: true }).then_some(out.colour);
+            let ms = started.elapsed().as_secs_f64() * 1e3;
+            t.record(shown.kind, out.colour, &gold, (w, h), ms);
+        }
+        if let (Some(a), true) = (anchor, shown.kind != Kind::Rest { first_rest: false }) {
+            let colour = renderer.complete(&shown.state, a.spp, frame)?;
+            let (albedo, normal) = (g.albedo.clone(), g.normal.clone());
+            anchor_frames.push((shown.kind, gold));
+            noisy.push(Noisy { colour, albedo, normal });
         }
     }
-    Ok(methods
-        .iter()
-        .zip(tracks)
-        .map(|(m, t)| MethodResult {
-            method: m.name(),
-            first_frame_flip: t.orbit.first().copied().unwrap_or(f64::NAN),
-            orbit_mean_flip: mean(&t.orbit),
-            material_edit_flip: t.material,
-            light_edit_flip: t.light,
-            stability: mean(&t.stability),
-            cpu_ms: median(t.ms),
-            orbit_flip: t.orbit,
-        })
-        .collect())
+    let mut results: Vec<MethodResult> =
+        methods.iter().zip(tracks).map(|(m, t)| t.result(m.name())).collect();
+    if let Some(a) = anchor {
+        let denoised = a.oidn.denoise(&noisy, w, h)?;
+        let mut t = Track::default();
+        for ((kind, gold), d) in anchor_frames.iter().zip(denoised) {
+            t.record(*kind, d.colour, gold, (w, h), d.ms);
+        }
+        results.push(t.result("oidn"));
+    }
+    Ok(results)
+}
+
+/// The external anchor of [`run`]: OIDN on complete frames of `spp` samples per pixel
+/// of each measured frame's state (it cannot fill the holes of missing sets).
+#[derive(Clone, Debug)]
+pub struct Anchor {
+    pub oidn: Oidn,
+    pub spp: u32,
+}
+
+/// One method's figures as the script goes.
+#[derive(Default)]
+struct Track {
+    orbit: Vec<f64>,
+    material: Option<f64>,
+    light: Option<f64>,
+    stability: Vec<f64>,
+    ms: Vec<f64>,
+    /// The last frame of the first rest, for stability.
+    last: Option<Vec<Vec3>>,
+}
+
+impl Track {
+    /// Scores a frame of kind `kind` shown as `colour` against its reference `gold`.
+    fn record(
+        &mut self,
+        kind: Kind,
+        colour: Vec<Vec3>,
+        gold: &[Vec3],
+        (w, h): (u32, u32),
+        ms: f64,
+    ) {
+        self.ms.push(ms);
+        let flip = || compare(gold, &colour, w, h, 0.0).flip;
+        match kind {
+            Kind::Rest { first_rest: true } => {
+                if let Some(last) = &self.last {
+                    self.stability.push(compare(last, &colour, w, h, 0.0).flip);
+                }
+            }
+            Kind::Rest { first_rest: false } => {}
+            Kind::Orbit => self.orbit.push(flip()),
+            Kind::MaterialEdit => self.material = Some(flip()),
+            Kind::LightEdit => self.light = Some(flip()),
+        }
+        self.last = matches!(kind, Kind::Rest { first_rest: true }).then_some(colour);
+    }
+
+    fn result(self, method: &'static str) -> MethodResult {
+        MethodResult {
+            method,
+            first_frame_flip: self.orbit.first().copied().unwrap_or(f64::NAN),
+            orbit_mean_flip: mean(&self.orbit),
+            material_edit_flip: self.material.unwrap_or(f64::NAN),
+            light_edit_flip: self.light.unwrap_or(f64::NAN),
+            stability: mean(&self.stability),
+            cpu_ms: median(self.ms),
+            orbit_flip: self.orbit,
+        }
+    }
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -329,7 +373,7 @@ mod tests {
         let (assets, state) = crate::render::testscenes::cornell_box(96, 72);
         let script = Script { orbit_views: 3, gold_spp: 32, ..Script::full() };
         let methods = [Method::Paper, Method::Svgf];
-        let r = run(assets, &state, &script, &methods, Default::default()).expect("a run");
+        let r = run(assets, &state, &script, &methods, Default::default(), None).expect("a run");
         let (paper, svgf) = (&r[0], &r[1]);
         eprintln!("{paper:?}\n{svgf:?}");
         assert_eq!((paper.method, svgf.method), ("paper", "svgf"));
