@@ -21,6 +21,7 @@ pub mod gpu;
 pub mod integrator;
 pub mod isa;
 pub mod lanes;
+pub mod layering;
 pub mod lights;
 pub mod microfacet;
 pub mod normal_map;

@@ -13,8 +13,10 @@
 //! than it receives at all but normal views (a smooth white plastic mirrors F(cos θ) and
 //! still scatters 94–96 % diffusely: 1.007 in all at cos θ = 0.6, 1.22 at 0.25, 1.72 at
 //! 0.05, by numerical integration). Here the base sees the light the layer lets through
-//! on the way in and out, `(1 − F(n·v))(1 − F(n·l))`, as the `Glossy` kind does, so that
-//! no corner of the parameters returns more than it receives (`pbr/tests.rs`).
+//! on the way in and out, normalised so that a white base returns exactly what the layer
+//! does not reflect ([`super::layering`]): no corner of the parameters gains energy
+//! (`pbr/tests.rs`), and a rough floor seen at a grazing angle keeps the light Cycles
+//! gives it.
 //! `KHR_materials_transmission` replaces that share of the non-metal by rough glass: the
 //! existing dielectric ([`Bsdf`]'s glass, exact Fresnel, refraction through the surface),
 //! so a transmissive glTF object renders as the `Dielectric` kind does. The extension's
@@ -34,6 +36,7 @@ use std::f32::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3};
 
 use super::bsdf::{Bsdf, BsdfSample};
+use super::layering;
 use super::microfacet::{
     cosine_hemisphere, fresnel_dielectric, reflect, refract, sample_rough_dielectric, Ggx,
 };
@@ -48,19 +51,20 @@ fn schlick(f0: f32, cos: f32) -> f32 {
     f0 + (1.0 - f0) * (1.0 - cos.clamp(0.0, 1.0)).powi(5)
 }
 
-/// glTF's `fresnel_mix` of a dielectric layer of normal-incidence reflectance `f0` over
-/// `base`: the layer weighted by Schlick's Fresnel at `cos_oh` (view · microfacet
-/// normal), the base by what the layer transmits at the view's and the light's cosines
-/// to the macro normal (see the module's note on energy).
+/// glTF's `fresnel_mix` of a dielectric layer of normal-incidence reflectance `f0` and
+/// roughness `alpha` over `base`: the layer weighted by Schlick's Fresnel at `cos_oh`
+/// (view · microfacet normal), the base by what the layer lets through at the view's and
+/// the light's cosines to the macro normal ([`layering::base_weight`]).
 #[inline]
 pub fn fresnel_mix(
     f0: f32,
+    alpha: f32,
     cos_oh: f32,
     (cos_o, cos_i): (f32, f32),
     base: Vec3,
     layer: f32,
 ) -> Vec3 {
-    let through = (1.0 - schlick(f0, cos_o)) * (1.0 - schlick(f0, cos_i));
+    let through = layering::base_weight(f0, alpha, cos_o, cos_i);
     base * through + Vec3::splat(layer * schlick(f0, cos_oh))
 }
 
@@ -116,7 +120,8 @@ impl Bsdf {
     fn lobes(&self, wo: Vec3) -> Lobes {
         let cos = wo.z.abs();
         let (m, t) = (self.metallic, self.transmission);
-        let f = schlick(dielectric_f0(self.eta), cos);
+        // What the dielectric layer reflects at this view (Schlick's F when smooth).
+        let f = layering::albedo(dielectric_f0(self.eta), self.ggx.alpha, cos);
         let opaque = (1.0 - m) * (1.0 - t);
         let floor = |share: f32, estimate: f32| {
             if share > 0.0 {
@@ -162,11 +167,11 @@ impl Bsdf {
             pdf += lobes.diffuse * i.z * FRAC_1_PI;
             if smooth {
                 // Only the Lambertian base is not a delta.
-                f += fresnel_mix(f0, cos_oh, (o.z, i.z), diffuse, 0.0) * opaque;
+                f += fresnel_mix(f0, self.ggx.alpha, cos_oh, (o.z, i.z), diffuse, 0.0) * opaque;
             } else {
                 let d = self.ggx.d(h);
                 let spec = d * self.ggx.g2(o, i) / (4.0 * o.z);
-                f += fresnel_mix(f0, cos_oh, (o.z, i.z), diffuse, spec) * opaque
+                f += fresnel_mix(f0, self.ggx.alpha, cos_oh, (o.z, i.z), diffuse, spec) * opaque
                     + conductor_fresnel(self.color, cos_oh, spec) * self.metallic;
                 pdf += (lobes.specular + lobes.metal) * self.ggx.g1(o) * d / (4.0 * o.z);
             }
