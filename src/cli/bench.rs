@@ -14,7 +14,7 @@ use super::GlobalArgs;
 use crate::assets::Assets;
 use crate::render::isa::IsaLevel;
 use crate::render::testscenes;
-use crate::scene::{self, AssetSearchPath};
+use crate::scene::{self, SceneSource};
 use crate::tools::bench::compose::ComposeSettings as ComposeBench;
 use crate::tools::bench::reconstruct::BenchSettings as ReconBench;
 use crate::tools::bench::trace::{bench_scene, TraceReport, TraceSettings};
@@ -102,8 +102,8 @@ pub struct ComposeArgs {
 /// Arguments of `gridlight bench trace`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct TraceArgs {
-    /// Scene files (TOML); default: the Cornell box, plus bunny and Sponza when their
-    /// assets are found.
+    /// Scene files (TOML, or glTF `.gltf`/`.glb`); default: the Cornell box, plus bunny
+    /// and Sponza when their assets are found.
     pub scenes: Vec<PathBuf>,
     /// Print one JSON object per scene and line.
     #[arg(long)]
@@ -289,8 +289,9 @@ fn scenes_of<R>(
 }
 
 fn bench_file<R>(path: &Path, global: &GlobalArgs, bench: &BenchFn<R>) -> anyhow::Result<R> {
-    let resolver = AssetSearchPath::from_env(&global.assets, Some(path));
-    let loaded = scene::load(path, &resolver)?;
+    // As `render` finds it: a glTF file's own folder is part of its search path.
+    let (source, resolver) = SceneSource::find_with_assets(path, &global.assets)?;
+    let loaded = scene::load_source(&source, &resolver)?;
     let name = path
         .file_stem()
         .map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned());
