@@ -2,8 +2,8 @@
 //! all of it in this folder.
 //!
 //! Computed on the master for every pixel of a frame's scene state (docs/design.md), by the
-//! CPU path ([`GBuffer::from_scene`], one `primary_hit` per pixel, in the dispatched
-//! kernel build) or the wgpu raster pass ([`GpuGBuffer`]: `gpu.rs` with its device
+//! CPU path ([`GBuffer::from_scene`], `primary_hit` of every pixel, traced a tile of
+//! pixels at a time in the dispatched kernel build) or the wgpu raster pass ([`GpuGBuffer`]: `gpu.rs` with its device
 //! objects in `raster.rs` and its WGSL in `raster.wgsl`); [`GBufferSource`] picks one
 //! and caches by state version. `emission.rs` refines the directly seen emission of
 //! converging frames; `ahead.rs` computes a new state's G-buffer on its own thread before
@@ -26,7 +26,8 @@ pub mod emission;
 pub mod gpu;
 mod raster;
 
-use crate::render::{primary_hits, PixelSample, RenderError, RenderScene};
+use crate::render::isa::IsaLevel;
+use crate::render::{primary_block_in, PixelSample, RenderError, RenderScene, PRIMARY_TILE};
 pub use gpu::GpuGBuffer;
 
 /// Object id of pixels whose camera ray hit no object.
@@ -91,10 +92,11 @@ impl GBuffer {
     /// (`render::primary_hit`), with `scene_scale` given (it depends on the objects only:
     /// [`GBufferSource`] keeps it while only the camera moves).
     ///
-    /// Bands of rows run on every thread of the pool; each traces runs of a row's pixels
-    /// into a small buffer (one call into the dispatched kernel build) and writes them
-    /// straight into its rows of the planes, which are allocated zeroed and so faulted in
-    /// by the threads that write them.
+    /// Bands of rows run on every thread of the pool; each traces blocks of a few rows'
+    /// pixels into a small buffer (one call into the dispatched kernel build, whose rays go
+    /// a tile of 4×4 at a time: `render::primary_block_in`) and writes them straight into
+    /// its rows of the planes, which are allocated zeroed and so faulted in by the
+    /// threads that write them.
     pub fn from_scene(scene: &RenderScene, scene_scale: f32) -> Self {
         let mut g = Self::empty(0, 0, scene_scale);
         g.trace(scene, scene_scale);
@@ -119,15 +121,25 @@ impl GBuffer {
         sized(&mut self.albedo, n);
         sized(&mut self.emission, n);
         sized(&mut self.object, n);
-        // About four bands per thread, to share out rows of unequal cost.
-        let rows = res.height as usize;
-        let band = rows.div_ceil(4 * rayon::current_num_threads()).max(1) * w;
-        self.bands(band).into_par_iter().for_each(|(first, mut band)| {
-            let mut hits = [PixelSample::default(); RUN];
-            for start in (0..band.len()).step_by(RUN) {
-                let run = &mut hits[..RUN.min(band.len() - start)];
-                primary_hits(scene, (first + start) as u32, run);
-                band.write(start, run);
+        // About four bands per thread, to share out rows of unequal cost, each a whole
+        // number of tiles tall.
+        let (rows, tile) = (res.height as usize, PRIMARY_TILE as usize);
+        let band = rows.div_ceil(4 * rayon::current_num_threads()).max(1).next_multiple_of(tile);
+        let build = IsaLevel::best();
+        self.bands(band * w).into_par_iter().for_each(|(first, mut band)| {
+            let mut hits = [PixelSample::default(); BLOCK * PRIMARY_TILE as usize];
+            let y0 = first / w;
+            for y in (0..band.len() / w).step_by(tile) {
+                let height = tile.min(band.len() / w - y);
+                for x in (0..w).step_by(BLOCK) {
+                    let width = BLOCK.min(w - x);
+                    let block = &mut hits[..width * height];
+                    let (corner, size) = ((x, y0 + y), (width, height));
+                    primary_block_in(build, scene, cast(corner), cast(size), block);
+                    for (row, samples) in block.chunks(width).enumerate() {
+                        band.write((y + row) * w + x, samples);
+                    }
+                }
             }
         });
     }
@@ -199,8 +211,14 @@ fn sized<T: bytemuck::Zeroable>(v: &mut Vec<T>, n: usize) {
     }
 }
 
-/// Pixels traced per call into the kernel build: a buffer of their samples stays in L1.
-const RUN: usize = 64;
+/// Columns of a block of pixels traced per call into the kernel build (one tile tall):
+/// a buffer of their samples stays in L1.
+const BLOCK: usize = 16;
+
+/// A pair of pixel counts (a corner or a size) as the kernel takes them.
+fn cast((x, y): (usize, usize)) -> (u32, u32) {
+    (x as u32, y as u32)
+}
 
 /// Consecutive pixels of every plane, written by one thread.
 struct Band<'a> {
@@ -473,6 +491,112 @@ mod tests {
             assert!(escaped > 0 && escaped < want.len(), "{escaped} rays escape");
             assert_eq!(g, GBuffer::from_samples(w, h, &want, 1.5), "{w}×{h}");
         }
+    }
+
+    /// Every plane's bits (so that −0 and +0, or two NaNs, count as different).
+    fn plane_bits(g: &GBuffer) -> Vec<Vec<u32>> {
+        let vec3 = |p: &[Vec3]| p.iter().flat_map(|v| v.to_array().map(f32::to_bits)).collect();
+        let planes = [&g.normal, &g.position, &g.albedo, &g.emission];
+        let mut bits: Vec<Vec<u32>> = planes.into_iter().map(|p| vec3(p)).collect();
+        bits.push(g.object.clone());
+        bits
+    }
+
+    /// A scene for the tile path's bit-for-bit test: the Cornell box (flattened small
+    /// instances: walls, boxes, an emissive quad) with a glTF-style Pbr cube whose colour,
+    /// metallic-roughness and normal maps are textures, two large spheres (entered through
+    /// their own BLAS), one Pbr with the same maps, one emissive glossy, a quad light and
+    /// a coloured environment.
+    fn many_materials(w: u32, h: u32) -> (Arc<Assets>, SceneState) {
+        use gridlight_actors::state::{Geometry, Light, Material, MaterialKind, Object};
+        let (assets, mut state) = crate::render::testscenes::cornell_box(w, h);
+        let mut assets = (*assets).clone();
+        let texture = |seed: u32| {
+            let texel = |i: u32, k: u32| {
+                ((i.wrapping_mul(2654435761).wrapping_add(seed * 97 + k * 40503)) % 997) as f32
+            };
+            let texels = (0..64)
+                .map(|i| Vec3::new(texel(i, 1), texel(i, 2), texel(i, 3)) / 997.0 * 0.9)
+                .collect();
+            Arc::new(crate::assets::Texture::linear(8, 8, texels))
+        };
+        assets.textures.insert("color.png".into(), texture(1));
+        assets.data_textures.insert("mr.png".into(), texture(2));
+        assets.data_textures.insert("normal.png".into(), texture(3));
+        let mut pbr = Material::pbr("pbr", Vec3::new(0.9, 0.8, 0.7), 0.5, 0.4);
+        pbr.base_color_texture = Some("color.png".into());
+        pbr.metallic_roughness_texture = Some("mr.png".into());
+        pbr.normal_texture = Some("normal.png".into());
+        pbr.normal_scale = 0.8;
+        let mut glow = crate::render::testscenes::material(
+            "glow",
+            MaterialKind::Glossy,
+            Vec3::new(0.2, 0.5, 0.3),
+            0.3,
+        );
+        glow.emission = Vec3::new(1.0, 2.0, 0.5);
+        let place = |name: &str, geometry, translation: Vec3, scale: f32| {
+            let mut o = Object::new(name, geometry);
+            o.transform.translation = translation;
+            o.transform.rotation = glam::Quat::from_euler(glam::EulerRot::XYZ, 0.3, 0.7, 0.1);
+            o.transform.scale = Vec3::splat(scale);
+            o
+        };
+        let sphere = Geometry::Sphere { subdivisions: 3 };
+        state = state
+            .with_object(
+                place("pbr-cube", Geometry::Cube, Vec3::new(0.5, 0.3, 0.2), 0.4),
+                pbr.clone(),
+            )
+            .with_object(place("pbr-ball", sphere.clone(), Vec3::new(-0.5, 0.4, 0.3), 0.3), pbr)
+            .with_object(place("glow-ball", sphere, Vec3::new(0.1, -0.5, 0.6), 0.25), glow);
+        state.lights.push(Light::Quad {
+            corner: Vec3::new(-0.9, -0.9, -0.5),
+            edge_u: Vec3::new(0.5, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.6, 0.1),
+            radiance: Vec3::new(3.0, 2.0, 1.0),
+        });
+        state.environment = Some(gridlight_actors::state::Environment {
+            map: None,
+            color: Vec3::new(0.2, 0.3, 0.4),
+            intensity: 1.0,
+            rotation_deg: 0.0,
+        });
+        (Arc::new(assets), state)
+    }
+
+    #[test]
+    fn the_tile_path_is_every_pixels_one_ray_hit_bit_for_bit() {
+        // Sizes whose tiles and bands end mid-tile; views from inside and outside the box
+        // (rays escaping past the walls), a thin lens, and a view whose tiles straddle
+        // the axes where direction components change sign.
+        let views = [
+            (37, 23, Vec3::new(0.0, 0.0, 3.9), 0.0),
+            (64, 48, Vec3::new(0.4, 0.2, 0.9), 0.03),
+            (30, 41, Vec3::new(-2.5, 1.5, 4.0), 0.0),
+        ];
+        let (mut seen, mut lit) = (std::collections::HashSet::new(), false);
+        for (w, h, eye, aperture) in views {
+            let (assets, mut state) = many_materials(w, h);
+            state.camera.position = eye;
+            state.camera.aperture = aperture;
+            state.camera.focus_distance = 3.0;
+            let scene = RenderScene::new(assets, &state).unwrap();
+            let g = GBuffer::from_scene(&scene, 1.5);
+            let want: Vec<PixelSample> =
+                (0..w * h).map(|p| crate::render::primary_hit(&scene, p)).collect();
+            let want = GBuffer::from_samples(w, h, &want, 1.5);
+            seen.extend(want.object.iter().copied());
+            lit |= want.emission.iter().any(|e| *e == Vec3::new(3.0, 2.0, 1.0));
+            for (i, (got, want)) in plane_bits(&g).iter().zip(plane_bits(&want)).enumerate() {
+                let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
+                assert_eq!(differ, 0, "{w}×{h} from {eye}: plane {i}, {differ} values differ");
+            }
+        }
+        // Every object (8 of the box, 3 added) and the quad light were seen, and rays
+        // escaped.
+        assert_eq!(seen.len(), 12, "objects seen: {seen:?}");
+        assert!(lit, "the quad light was not seen");
     }
 
     #[test]

@@ -45,8 +45,8 @@ use envmap::Environment;
 use lights::{AreaLight, Lights};
 
 pub use integrator::{
-    area_emission, escaped_emission, pick, primary_hit, primary_hits, render_pixels,
-    render_pixels_counted, render_pixels_in, RenderStats, Strategy,
+    area_emission, escaped_emission, pick, primary_block_in, primary_hit, render_pixels,
+    render_pixels_counted, render_pixels_in, RenderStats, Strategy, PRIMARY_TILE,
 };
 
 /// Why a scene state cannot be rendered with the given assets.

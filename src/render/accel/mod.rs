@@ -125,6 +125,55 @@ mod tests {
         }
     }
 
+    /// Sixteen coherent rays traced together (`Tlas::intersect_lanes_with`) hit what each
+    /// hits alone, bit for bit, over flattened cubes and two large spheres, with lanes
+    /// left empty; and the walk in lanes answers nearly every lane itself.
+    #[test]
+    fn coherent_rays_in_lanes_hit_what_each_ray_hits_alone() {
+        use crate::render::isa::Cpu;
+        use crate::render::lanes::{Vec3s, WIDTH};
+        let sphere = Arc::new(Blas::build(Arc::new(shapes::sphere(3))).unwrap());
+        let cube = Arc::new(Blas::build(Arc::new(shapes::cube())).unwrap());
+        let mut rng = 4242u64;
+        let instances = (0..10u32)
+            .map(|object| {
+                let blas = if object < 2 { sphere.clone() } else { cube.clone() };
+                Instance::new(blas, random_transform(&mut rng), object, 0)
+            })
+            .collect();
+        let tlas = Tlas::build(instances);
+        let bits = |h: Option<Hit>| {
+            h.map(|h| (h.t.to_bits(), h.instance, h.prim, h.u.to_bits(), h.v.to_bits()))
+        };
+        let (mut hits, mut sure, mut lanes) = (0, 0, 0);
+        for round in 0..400 {
+            let o = Vec3::new(lcg(&mut rng) - 0.5, lcg(&mut rng) - 0.5, lcg(&mut rng) - 0.5) * 12.0;
+            let target = (Vec3::new(lcg(&mut rng), lcg(&mut rng), lcg(&mut rng)) - 0.5) * 6.0;
+            let centre = (target - o).normalize();
+            let (mut os, mut ds) = (Vec3s::default(), Vec3s::default());
+            for l in 0..WIDTH {
+                let jitter = Vec3::new(lcg(&mut rng), lcg(&mut rng), lcg(&mut rng)) - 0.5;
+                os.set_lane(l, o);
+                ds.set_lane(l, (centre + jitter * 0.02).normalize());
+            }
+            let active = if round % 4 == 0 { 0x0f0f } else { (1 << WIDTH) - 1 };
+            let got = tlas.intersect_lanes_with(Cpu::BASELINE, &os, &ds, active);
+            for (l, &got) in got.iter().enumerate() {
+                let want = (active & (1 << l) != 0)
+                    .then(|| tlas.intersect(o, ds.lane(l), f32::INFINITY))
+                    .flatten();
+                assert_eq!(bits(got), bits(want), "round {round}, lane {l}");
+                hits += usize::from(want.is_some());
+            }
+            if let Some(rays) = wide::RayLanes::new(&os, &ds, active) {
+                sure += tlas.flat.wide.intersect_lanes(&rays).sure.count_ones();
+                lanes += active.count_ones();
+            }
+        }
+        assert!(hits > 1000, "too few hits ({hits}) to test anything");
+        assert!(sure as f64 > 0.98 * lanes as f64, "{sure} of {lanes} lanes sure");
+    }
+
     /// Geometric normals are the normal matrix times the edges' cross product, normalised,
     /// bit for bit, whether the budget stored them or not (here it holds the first two
     /// instances only).

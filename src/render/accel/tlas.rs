@@ -15,8 +15,9 @@ use obvhs::BvhBuildParams;
 use super::blas::{build_tri_bvh, Blas};
 use super::traverse::{intersect_node, restart};
 use super::triangle::TriEdges;
-use super::wide::{LaneFill, TriHit, WideBvh, WideRay};
+use super::wide::{LaneFill, LaneHits, RayLanes, TriHit, WideBvh, WideRay};
 use crate::render::isa::{Cpu, Isa};
+use crate::render::lanes::{Vec3s, WIDTH};
 
 /// One placed instance of a BLAS.
 #[derive(Clone)]
@@ -251,9 +252,60 @@ impl Tlas {
         dir: Vec3,
         tmax: f32,
     ) -> Option<Hit> {
-        let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
         let (origin, dir) = (Vec3A::from(origin), Vec3A::from(dir));
-        if let Some(h) = self.flat.wide.intersect::<I>(&WideRay::new(origin, dir), tmax) {
+        let flat = self.flat.wide.intersect::<I>(&WideRay::new(origin, dir), tmax);
+        self.beyond_flat::<I>(origin, dir, tmax, flat)
+    }
+
+    /// [`Tlas::intersect_with`] of sixteen coherent rays (`active` lanes of `o`, `d`; a
+    /// G-buffer tile's camera rays), with no `tmax`: the same hits, the flattened
+    /// instances' walked by the rays together where they can be (see
+    /// `wide/coherent.rs`), large instances entered by each ray alone.
+    #[inline(always)]
+    pub fn intersect_lanes_with<I: Isa>(
+        &self,
+        cpu: Cpu<I>,
+        o: &Vec3s<I>,
+        d: &Vec3s<I>,
+        active: u32,
+    ) -> [Option<Hit>; WIDTH] {
+        let mut out = [None; WIDTH];
+        let Some(rays) = RayLanes::new(o, d, active) else {
+            for (l, hit) in out.iter_mut().enumerate().filter(|(l, _)| active & (1 << l) != 0) {
+                *hit = self.intersect_with(cpu, o.lane(l), d.lane(l), f32::INFINITY);
+            }
+            return out;
+        };
+        let h: LaneHits<I> = self.flat.wide.intersect_lanes(&rays);
+        for (l, hit) in out.iter_mut().enumerate().filter(|(l, _)| active & (1 << l) != 0) {
+            let (origin, dir) = (Vec3A::from(o.lane(l)), Vec3A::from(d.lane(l)));
+            let flat = if h.sure & (1 << l) == 0 {
+                self.flat.wide.intersect::<I>(&WideRay::new(origin, dir), f32::INFINITY)
+            } else {
+                (h.hit & (1 << l) != 0).then(|| TriHit {
+                    t: h.t.0[l],
+                    prim: h.prim.0[l],
+                    u: h.u.0[l],
+                    v: h.v.0[l],
+                })
+            };
+            *hit = self.beyond_flat::<I>(origin, dir, f32::INFINITY, flat);
+        }
+        out
+    }
+
+    /// The rest of [`Tlas::intersect_with`] given the flattened instances' closest hit
+    /// `flat`: the large instances, entered through their BLAS.
+    #[inline(always)]
+    fn beyond_flat<I: Isa>(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        tmax: f32,
+        flat: Option<TriHit>,
+    ) -> Option<Hit> {
+        let mut best = Hit { t: tmax, instance: u32::MAX, prim: 0, u: 0.0, v: 0.0 };
+        if let Some(h) = flat {
             best = self.flat_hit(h);
         }
         if self.large.is_empty() {

@@ -5,7 +5,7 @@
 //! each build's feature list is written once, here: the kernel itself and its primary hits
 //! are such tasks too.
 
-use super::gbuffer::primary_hits_with;
+use super::gbuffer::primary_block_with;
 use super::{RenderStats, Strategy};
 use crate::render::isa::{Cpu, Isa, IsaLevel};
 use crate::render::{PixelSample, RenderScene};
@@ -54,10 +54,22 @@ pub fn render_pixels_in(
     run_in_build(build, RenderPixels { scene, frame, pixels, out, strategy })
 }
 
-/// [`super::primary_hit`] of pixels `first..first + out.len()` into `out`, in the kernel
-/// build [`super::render_pixels_counted`] would pick (the same values bit for bit).
-pub fn primary_hits(scene: &RenderScene, first: u32, out: &mut [PixelSample]) {
-    run_in_build(IsaLevel::best(), PrimaryHits { scene, first, out })
+/// [`super::primary_hit`] of the pixels `x0..x0 + width` × `y0..y0 + height` (`height` ≤
+/// [`super::PRIMARY_TILE`]) into `out`, row by row, their rays traced a tile at a time in the
+/// build of the given level (the same values bit for bit in every build).
+///
+/// # Panics
+/// Where this CPU cannot run `build`, or `out` is not `width × height` long.
+pub fn primary_block_in(
+    build: IsaLevel,
+    scene: &RenderScene,
+    corner: (u32, u32),
+    size: (u32, u32),
+    out: &mut [PixelSample],
+) {
+    assert!(size.1 <= super::PRIMARY_TILE, "a block is at most one tile tall");
+    assert_eq!(out.len(), size.0 as usize * size.1 as usize, "one sample per pixel");
+    run_in_build(build, PrimaryBlock { scene, corner, size, out })
 }
 
 /// The stream kernel over a pixel list, as a [`BuildTask`].
@@ -85,19 +97,20 @@ impl BuildTask for RenderPixels<'_> {
     }
 }
 
-/// Primary hits of a pixel range, as a [`BuildTask`].
-struct PrimaryHits<'a> {
+/// Primary hits of a block of pixels, as a [`BuildTask`].
+struct PrimaryBlock<'a> {
     scene: &'a RenderScene,
-    first: u32,
+    corner: (u32, u32),
+    size: (u32, u32),
     out: &'a mut [PixelSample],
 }
 
-impl BuildTask for PrimaryHits<'_> {
+impl BuildTask for PrimaryBlock<'_> {
     type Output = ();
 
     #[inline(always)]
     fn run<I: Isa>(self, cpu: Cpu<I>) {
-        primary_hits_with(cpu, self.scene, self.first, self.out)
+        primary_block_with(cpu, self.scene, self.corner, self.size, self.out)
     }
 }
 

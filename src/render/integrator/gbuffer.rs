@@ -1,35 +1,74 @@
 //! The G-buffer probe (a camera ray through each pixel's centre), the emission a pixel
-//! sees directly, and picking: one closest hit each, no path.
+//! sees directly, and picking: one closest hit each, no path. The G-buffer's rays are
+//! traced a tile at a time, together (`primary_block_with`), and each hit shaded alone.
 
 use glam::{Vec2, Vec3};
 
-use super::path::{albedo_of, closest, Hit};
+use super::path::{albedo_of, closest, resolve, Hit};
 use super::MIN_ALBEDO;
 use crate::render::isa::{Cpu, Isa};
+use crate::render::lanes::{F32s, WIDTH};
 use crate::render::{PixelSample, RenderScene};
 
 /// G-buffer sample through the pixel centre (reflected radiance zero).
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
-    primary_hit_with(Cpu::BASELINE, scene, pixel)
+    let (o, d) = primary_ray(scene, pixel);
+    primary_sample(scene, o, d, scene.tlas.intersect(o, d, f32::INFINITY))
 }
 
+/// Side of the square tiles whose camera rays [`primary_block_with`] traces together:
+/// sixteen rays, one per lane.
+pub const PRIMARY_TILE: u32 = 4;
+const _: () = assert!((PRIMARY_TILE * PRIMARY_TILE) as usize == WIDTH);
+
+/// [`primary_hit`] of the block of pixels `x0..x0 + width` × `y0..y0 + height` (`height`
+/// ≤ [`PRIMARY_TILE`]) into `out`, row by row: the camera rays of each tile are made in
+/// lanes and traced together (`Tlas::intersect_lanes_with`), then each pixel's hit is
+/// shaded alone, as [`primary_hit`] shades it; the same values bit for bit.
 #[inline(always)]
-pub(super) fn primary_hits_with<I: Isa>(
+pub(super) fn primary_block_with<I: Isa>(
     cpu: Cpu<I>,
     scene: &RenderScene,
-    first: u32,
+    (x0, y0): (u32, u32),
+    (width, height): (u32, u32),
     out: &mut [PixelSample],
 ) {
-    for (pixel, s) in (first..).zip(out.iter_mut()) {
-        *s = primary_hit_with(cpu, scene, pixel);
+    debug_assert!(height <= PRIMARY_TILE && out.len() == (width * height) as usize);
+    let half = F32s::<I>::splat(0.5);
+    for tx in (0..width).step_by(PRIMARY_TILE as usize) {
+        let cols = PRIMARY_TILE.min(width - tx);
+        let (mut px, mut py) = (F32s::<I>::splat(0.0), F32s::<I>::splat(0.0));
+        let mut active = 0u32;
+        for l in 0..WIDTH {
+            let (col, row) = (l as u32 % PRIMARY_TILE, l as u32 / PRIMARY_TILE);
+            let inside = col < cols && row < height;
+            active |= u32::from(inside) << l;
+            // Lanes past the block's edge make the tile's first ray again, unused.
+            let (col, row) = if inside { (col, row) } else { (0, 0) };
+            // As `primary_ray`: the pixel's centre.
+            px.0[l] = (x0 + tx + col) as f32 + 0.5;
+            py.0[l] = (y0 + row) as f32 + 0.5;
+        }
+        let (o, d) = scene.camera.ray_lanes((px, py), (half, half));
+        let hits = scene.tlas.intersect_lanes_with(cpu, &o, &d, active);
+        for (l, hit) in hits.into_iter().enumerate().filter(|(l, _)| active & (1 << l) != 0) {
+            let (col, row) = (l as u32 % PRIMARY_TILE, l as u32 / PRIMARY_TILE);
+            let i = (row * width + tx + col) as usize;
+            out[i] = primary_sample(scene, o.lane(l), d.lane(l), hit);
+        }
     }
 }
 
+/// The G-buffer values of the camera ray `(o, d)` whose closest geometry hit is `hit`.
 #[inline(always)]
-fn primary_hit_with<I: Isa>(cpu: Cpu<I>, scene: &RenderScene, pixel: u32) -> PixelSample {
-    let (o, d) = primary_ray(scene, pixel);
+fn primary_sample(
+    scene: &RenderScene,
+    o: Vec3,
+    d: Vec3,
+    hit: Option<crate::render::accel::Hit>,
+) -> PixelSample {
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
-    let hit = closest(cpu, scene, o, d);
+    let hit = resolve(scene, o, d, hit);
     out.emission = seen_emission(scene, &hit, d);
     match hit {
         None => {}

@@ -22,10 +22,10 @@ mod path;
 #[cfg(test)]
 mod reference;
 
-pub use builds::{primary_hits, render_pixels_in, run_in_build, BuildTask};
+pub use builds::{primary_block_in, render_pixels_in, run_in_build, BuildTask};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use builds::{v3, v4};
-pub use gbuffer::{area_emission, escaped_emission, pick, primary_hit};
+pub use gbuffer::{area_emission, escaped_emission, pick, primary_hit, PRIMARY_TILE};
 pub(super) use nee::ShadowRay;
 pub use path::offset;
 pub(super) use path::{arrive, scatter, trace, PathState, Surface, EMPTY_SAMPLE};

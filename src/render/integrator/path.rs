@@ -45,7 +45,7 @@ pub(super) fn closest<'a, I: Isa>(
 /// What the ray `o + t d` reaches given the geometry's closest `hit`: an area light in
 /// front of it, or the hit surface with its shading data.
 #[inline(always)]
-fn resolve<'a>(
+pub(super) fn resolve<'a>(
     scene: &'a RenderScene,
     o: Vec3,
     d: Vec3,

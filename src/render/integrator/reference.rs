@@ -5,7 +5,7 @@ use glam::{Vec2, Vec3};
 
 use super::path::{arrive, scatter, trace, PathState, EMPTY_SAMPLE};
 use super::ShadowRay;
-use super::{primary_hit, primary_hits, render_pixels_in, RenderStats, Strategy};
+use super::{primary_block_in, primary_hit, render_pixels_in, RenderStats, Strategy, PRIMARY_TILE};
 use crate::render::isa::{Cpu, Isa, IsaLevel};
 use crate::render::sampler::SampleStream;
 use crate::render::{PixelSample, RenderScene};
@@ -175,13 +175,22 @@ mod tests {
                     }
                 }
             }
-            // The G-buffer's primary hits too (dispatched to v3 where the CPU has it).
-            let mut hits = vec![PixelSample::default(); pixels.len()];
-            primary_hits(&scene, 0, &mut hits);
-            for (i, h) in hits.iter().enumerate() {
-                assert_eq!(*h, primary_hit(&scene, i as u32), "{kind:?}: G-buffer pixel {i}");
+            // The G-buffer's primary hits too, traced a tile at a time in each build.
+            for &build in &builds {
+                let mut hits = Vec::new();
+                for y in (0..30).step_by(PRIMARY_TILE as usize) {
+                    let mut block = vec![PixelSample::default(); 40 * 4];
+                    let height = PRIMARY_TILE.min(30 - y);
+                    block.truncate(40 * height as usize);
+                    primary_block_in(build, &scene, (0, y), (40, height), &mut block);
+                    hits.extend(block);
+                }
+                for (i, h) in hits.iter().enumerate() {
+                    let case = format!("{kind:?}, {build:?}: G-buffer pixel {i}");
+                    assert_eq!(*h, primary_hit(&scene, i as u32), "{case}");
+                }
+                assert!(hits.iter().any(|h| h.object != u32::MAX), "{kind:?}: no primary hit");
             }
-            assert!(hits.iter().any(|h| h.object != u32::MAX), "{kind:?}: no primary hit");
         }
     }
 }

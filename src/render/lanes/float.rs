@@ -165,6 +165,28 @@ impl<I: Isa> F32s<I> {
         self.extreme::<false>(o)
     }
 
+    /// `if self > o { self } else { o }` per lane: x86's `maxps(self, o)`, one instruction
+    /// (`o` where either is NaN or both are zero), as the BVH's node tests compute.
+    #[inline(always)]
+    pub fn maxps(self, o: Self) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        return F32s::new(regs!(I, f -> f, self.0, o.0, |x, y|
+            sse: _mm_max_ps(x, y), avx: _mm256_max_ps(x, y), avx512: _mm512_max_ps(x, y)));
+        #[cfg(not(target_arch = "x86_64"))]
+        F32s::new(std::array::from_fn(|i| if self.0[i] > o.0[i] { self.0[i] } else { o.0[i] }))
+    }
+
+    /// `if self < o { self } else { o }` per lane: x86's `minps(self, o)`, as
+    /// [`F32s::maxps`].
+    #[inline(always)]
+    pub fn minps(self, o: Self) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        return F32s::new(regs!(I, f -> f, self.0, o.0, |x, y|
+            sse: _mm_min_ps(x, y), avx: _mm256_min_ps(x, y), avx512: _mm512_min_ps(x, y)));
+        #[cfg(not(target_arch = "x86_64"))]
+        F32s::new(std::array::from_fn(|i| if self.0[i] < o.0[i] { self.0[i] } else { o.0[i] }))
+    }
+
     /// [`F32s::max`] (`MAX`) or [`F32s::min`]: the two differ only in the instruction.
     #[inline(always)]
     fn extreme<const MAX: bool>(self, o: Self) -> Self {

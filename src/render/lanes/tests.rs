@@ -86,6 +86,10 @@ fn scalar_bits<I: Isa>() {
             let (x, y) = (a.0[i], b.0[i]);
             let (max, min) = (a.max(b).0[i].to_bits(), a.min(b).0[i].to_bits());
             assert_eq!((max, min), (x.max(y).to_bits(), x.min(y).to_bits()), "{x} {y}");
+            // x86's maxps/minps: the second operand unless the first is strictly beyond.
+            let (maxps, minps) = (a.maxps(b).0[i].to_bits(), a.minps(b).0[i].to_bits());
+            let want = (if x > y { x } else { y }, if x < y { x } else { y });
+            assert_eq!((maxps, minps), (want.0.to_bits(), want.1.to_bits()), "{x} {y}");
         }
     }
     for i in 0..WIDTH {

@@ -28,16 +28,23 @@
 //! fixed order (Rust neither contracts nor reorders float arithmetic), whatever width the
 //! compiler picks, and ties go to the lower lane and the earlier stack entry.
 //!
+//! Coherent rays, though, do share their nodes: a G-buffer tile's camera rays walk the
+//! tree together, one ray per lane of the vector types (`coherent.rs`), with the same
+//! answers as their walks alone.
+//!
 //! Files: this one holds the layout (nodes, leaf packets, the prepared ray); `build.rs`
 //! the layout made from obvhs's CWBVH, `hits.rs` the node and packet tests (in the
 //! instructions of the [`crate::render::isa::Isa`] they are compiled for), `walk.rs` the
-//! traversals.
+//! traversals, `coherent.rs` sixteen coherent rays' walk in lanes.
 
 use glam::Vec3A;
 
 mod build;
+mod coherent;
 mod hits;
 mod walk;
+
+pub(super) use coherent::{LaneHits, RayLanes};
 
 /// A child reference with this bit set is a leaf (its packet's index below it).
 const LEAF: u32 = 0x8000_0000;

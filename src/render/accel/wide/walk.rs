@@ -6,27 +6,27 @@ use std::mem::MaybeUninit;
 use super::{TriHit, WideBvh, WideRay, LEAF, STACK};
 use crate::render::isa::Isa;
 
-/// The traversal stack: `(child reference, entry distance)`, inline up to [`STACK`]
-/// entries (eight-wide trees are shallow), on the heap beyond.
-struct Stack {
-    inline: [MaybeUninit<(u32, f32)>; STACK],
+/// The traversal stack: `(child reference, entry distance)` for one ray, `packet.rs`'s
+/// entries for rays in lanes; inline up to [`STACK`] entries (eight-wide trees are
+/// shallow), on the heap beyond.
+pub(super) struct Stack<T = (u32, f32)> {
+    inline: [MaybeUninit<T>; STACK],
     len: usize,
-    spill: Vec<(u32, f32)>,
+    spill: Vec<T>,
 }
 
-impl Stack {
+impl<T: Copy> Stack<T> {
     #[inline(always)]
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         // Not zeroed: a memset per ray cost 4 % of a bunny frame (and the array-repeat
         // form still compiled to one).
         // SAFETY: an array of `MaybeUninit` needs no initialisation.
-        let inline =
-            unsafe { MaybeUninit::<[MaybeUninit<(u32, f32)>; STACK]>::uninit().assume_init() };
+        let inline = unsafe { MaybeUninit::<[MaybeUninit<T>; STACK]>::uninit().assume_init() };
         Self { inline, len: 0, spill: Vec::new() }
     }
 
     #[inline(always)]
-    fn push(&mut self, entry: (u32, f32)) {
+    pub(super) fn push(&mut self, entry: T) {
         if self.len < STACK {
             self.inline[self.len] = MaybeUninit::new(entry);
             self.len += 1;
@@ -36,7 +36,7 @@ impl Stack {
     }
 
     #[inline(always)]
-    fn pop(&mut self) -> Option<(u32, f32)> {
+    pub(super) fn pop(&mut self) -> Option<T> {
         if let Some(e) = self.spill.pop() {
             return Some(e);
         }
