@@ -46,6 +46,10 @@ pub struct Texture {
     pub height: u32,
     /// Row-major, top row first.
     pub texels: Texels,
+    /// Coverage codes (alpha × 255, linear) in texel order, kept only for a base colour
+    /// map some of whose texels are not opaque: one byte a texel where it matters, none
+    /// for the opaque maps that are most of a scene's.
+    pub alpha: Option<Vec<u8>>,
 }
 
 /// How a texture's texels are stored.
@@ -96,17 +100,34 @@ impl Texels {
 impl Texture {
     /// A texture of linear RGB texels.
     pub fn linear(width: u32, height: u32, texels: Vec<Vec3>) -> Self {
-        Self { width, height, texels: Texels::Linear(texels) }
+        Self { width, height, texels: Texels::Linear(texels), alpha: None }
     }
 
     /// A texture of 8-bit sRGB texels.
     pub fn srgb8(width: u32, height: u32, codes: Vec<[u8; 3]>) -> Self {
-        Self { width, height, texels: Texels::Srgb8(codes) }
+        Self { width, height, texels: Texels::Srgb8(codes), alpha: None }
     }
 
     /// A texture of 8-bit linear texels (code / 255).
     pub fn unorm8(width: u32, height: u32, codes: Vec<[u8; 3]>) -> Self {
-        Self { width, height, texels: Texels::Unorm8(codes) }
+        Self { width, height, texels: Texels::Unorm8(codes), alpha: None }
+    }
+
+    /// This texture with coverage codes (one per texel, code / 255), dropped when all are
+    /// 255: an opaque map costs nothing more than one without alpha.
+    pub fn with_alpha(mut self, codes: Vec<u8>) -> Self {
+        debug_assert_eq!(codes.len(), self.texels.len());
+        self.alpha = codes.iter().any(|&c| c < 255).then_some(codes);
+        self
+    }
+
+    /// Bilinear coverage at `uv`, wrapped as [`Texture::sample`]; 1 without alpha codes.
+    #[inline(always)]
+    pub fn sample_alpha(&self, uv: Vec2) -> f32 {
+        match &self.alpha {
+            Some(a) => self.bilinear(uv, |i| a[i] as f32 * (1.0 / 255.0)),
+            None => 1.0,
+        }
     }
 
     /// Bilinear lookup with wrap-around; `uv` (0,0) is the bottom-left corner as in OBJ.
@@ -128,7 +149,7 @@ impl Texture {
     /// Inlined into each dispatched build of the kernel (floor is an instruction on
     /// x86-64-v3).
     #[inline(always)]
-    fn bilinear(&self, uv: Vec2, texel: impl Fn(usize) -> Vec3) -> Vec3 {
+    fn bilinear<T: Lerp>(&self, uv: Vec2, texel: impl Fn(usize) -> T) -> T {
         let (w, h) = (self.width as f32, self.height as f32);
         let x = unit_wrap(uv.x) * w - 0.5;
         let y = (1.0 - unit_wrap(uv.y)) * h - 0.5;
@@ -144,6 +165,25 @@ impl Texture {
         let top = at(cx0, cy0).lerp(at(cx1, cy0), fx);
         let bottom = at(cx0, cy1).lerp(at(cx1, cy1), fx);
         top.lerp(bottom, fy)
+    }
+}
+
+/// Linear interpolation of texel values (colours, coverage).
+trait Lerp: Copy {
+    fn lerp(self, to: Self, t: f32) -> Self;
+}
+
+impl Lerp for Vec3 {
+    #[inline(always)]
+    fn lerp(self, to: Self, t: f32) -> Self {
+        Vec3::lerp(self, to, t)
+    }
+}
+
+impl Lerp for f32 {
+    #[inline(always)]
+    fn lerp(self, to: Self, t: f32) -> Self {
+        self + (to - self) * t
     }
 }
 

@@ -176,6 +176,13 @@ impl GpuGBuffer {
             self.targets = Some(Targets::new(&self.ctx.device, res.width, res.height));
         }
         let scale = self.scale.get(state, &self.assets);
+        if self.scene.cutouts {
+            // The raster pass draws every triangle whole; alpha-masked and blended surfaces
+            // are seen through by the CPU probe only (`render::alpha`), so it draws this one.
+            let g = GBuffer::from_scene(&self.scene, scale);
+            self.last_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+            return Ok(g);
+        }
         let (eye, view_proj) = self.scene.camera.raster_view(NEAR * scale);
         let view = ViewUniform {
             view_proj: view_proj.to_cols_array_2d(),

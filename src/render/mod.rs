@@ -8,11 +8,12 @@
 //! and returns what reconstruction needs per pixel (docs/design.md): demodulated
 //! radiance, directly seen emission and the primary hit's G-buffer values.
 //!
-//! Modules: [`accel`] (BVHs), [`sampler`] (scrambled Sobol), [`camera`],
+//! Modules: [`accel`] (BVHs), [`alpha`] (cut-out and blended surfaces), [`sampler`] (scrambled Sobol), [`camera`],
 //! [`bsdf`], [`microfacet`] and [`pbr`] (materials), [`lights`] and [`envmap`] (emitters),
 //! [`integrator`] (the path loop); [`gpu`] the same kernel in WGSL for GPU workers.
 
 pub mod accel;
+pub mod alpha;
 pub mod bsdf;
 pub mod camera;
 pub mod envmap;
@@ -34,7 +35,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use glam::{Affine3A, Vec2, Vec3};
-use gridlight_actors::state::{Geometry, MaterialKind, SceneState, TextureUse};
+use gridlight_actors::state::{AlphaMode, Geometry, MaterialKind, SceneState, TextureUse};
 
 use crate::assets::{Assets, Mesh, Texture};
 use crate::shapes;
@@ -120,6 +121,13 @@ pub struct MaterialData {
     /// `Pbr` only: a tangent-space normal map, its xy scaled by `normal_scale`.
     pub normal_map: Option<Arc<Texture>>,
     pub normal_scale: f32,
+    /// Coverage factor (times the base colour map's alpha), its mode and mask cutoff.
+    pub alpha: f32,
+    pub alpha_mode: AlphaMode,
+    pub alpha_cutoff: f32,
+    /// Whether some hit on this material can let a ray through ([`alpha::can_let_through`]):
+    /// checked before any texture lookup, so opaque materials cost nothing.
+    pub cutout: bool,
 }
 
 impl MaterialData {
@@ -162,6 +170,9 @@ pub struct RenderScene {
     pub(crate) materials: Vec<MaterialData>,
     /// Per instance (from `Instance::material_base`): material of each slot.
     pub(crate) slot_materials: Vec<u32>,
+    /// Whether some material is [`MaterialData::cutout`]: without one, hits are taken as
+    /// found and shadow rays stop at any hit.
+    pub(crate) cutouts: bool,
     pub(crate) lights: Lights,
     pub(crate) camera: CameraRays,
     triangles: usize,
@@ -179,6 +190,7 @@ impl RenderScene {
             tlas: Tlas::build(Vec::new()),
             materials: Vec::new(),
             slot_materials: Vec::new(),
+            cutouts: false,
             lights: Lights::default(),
             camera,
             triangles: 0,
@@ -239,6 +251,7 @@ impl RenderScene {
         }
         self.lights = Lights::new(areas, &state.lights, environment);
         self.tlas = Tlas::build(instances);
+        self.cutouts = materials.iter().any(|m| m.cutout);
         self.materials = materials;
         self.slot_materials = slot_materials;
         self.camera = camera;
@@ -307,6 +320,8 @@ impl RenderScene {
                     && m.ior.is_finite()
                     && unit(m.metallic)
                     && unit(m.transmission)
+                    && unit(m.alpha)
+                    && unit(m.alpha_cutoff)
                     && m.normal_scale.is_finite();
                 if !ok {
                     return Err(RenderError::BadMaterial { material: m.name.clone() });
@@ -323,7 +338,7 @@ impl RenderScene {
                         TextureUse::Normal => normal_map = Some(tex.clone()),
                     }
                 }
-                Ok(MaterialData {
+                let mut data = MaterialData {
                     kind: m.kind,
                     base_color: m.base_color,
                     texture,
@@ -335,7 +350,13 @@ impl RenderScene {
                     metallic_roughness,
                     normal_map,
                     normal_scale: m.normal_scale,
-                })
+                    alpha: m.alpha,
+                    alpha_mode: m.alpha_mode,
+                    alpha_cutoff: m.alpha_cutoff,
+                    cutout: false,
+                };
+                data.cutout = alpha::can_let_through(&data);
+                Ok(data)
             })
             .collect()
     }

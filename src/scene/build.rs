@@ -312,14 +312,9 @@ impl Builder<'_> {
             AlphaModeDesc::Mask => AlphaMode::Mask,
             AlphaModeDesc::Blend => AlphaMode::Blend,
         };
-        let unrendered = [
-            (m.emissive_map.is_some(), "emissive_map: not rendered yet (emission is uniform)"),
-            (alpha_mode != AlphaMode::Opaque, "alpha_mode mask and blend: drawn opaque"),
-        ];
-        for (used, what) in unrendered {
-            if used {
-                self.warnings.push(format!("material `{}`: {what}", m.name));
-            }
+        if m.emissive_map.is_some() {
+            let what = "emissive_map: not rendered yet (emission is uniform)";
+            self.warnings.push(format!("material `{}`: {what}", m.name));
         }
         Ok(Material {
             name: m.name.clone(),

@@ -2,12 +2,13 @@
 //! specification's BRDF (`render::pbr`): base colour (factor × texture), metallic and
 //! roughness (factors × the metallic-roughness texture's B and G), `KHR_materials_ior`,
 //! `KHR_materials_transmission`'s factor, `emissiveFactor` ×
-//! `KHR_materials_emissive_strength`. Alpha (the base colour factor's), its mode and
-//! cutoff, `doubleSided` and the emissive map are kept in the material too.
+//! `KHR_materials_emissive_strength`, alpha (the base colour factor's, times the base
+//! colour texture's alpha channel) with `alphaMode` MASK and BLEND (`render::alpha`).
+//! `doubleSided` and the emissive map are kept in the material too.
 //!
 //! `normalTexture` is rendered too (`render::normal_map`), with tangents from each
 //! triangle's texture coordinates. What is not rendered (occlusion and emissive maps, the
-//! transmission texture, alpha modes, texture sets other than 0, wrap modes other than
+//! transmission texture, texture sets other than 0, wrap modes other than
 //! repeat) and the normal maps' tangents are warned about once per feature.
 
 use glam::Vec3;
@@ -100,8 +101,6 @@ fn warn_unrendered(p: &Material, m: &gltf::Material, warnings: &mut Warnings) {
             m.transmission().is_some_and(|t| t.transmission_texture().is_some()),
             "transmissionTexture: not rendered (the transmission factor is used)",
         ),
-        (p.alpha_mode == AlphaMode::Mask, "alphaMode MASK: drawn opaque"),
-        (p.alpha_mode == AlphaMode::Blend, "alphaMode BLEND: drawn opaque"),
     ];
     for (used, warning) in pairs {
         if used {

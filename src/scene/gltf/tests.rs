@@ -312,14 +312,14 @@ fn unsupported_features_are_each_warned_about_once() {
     f.uses("KHR_texture_transform");
     f.json["extensionsRequired"] = json!(["KHR_texture_transform"]);
     let warnings = read_glb(&f).expect("loads").warnings.into_vec();
-    for feature in
-        ["KHR_materials_clearcoat", "KHR_texture_transform", "normal maps", "alphaMode BLEND"]
-    {
+    for feature in ["KHR_materials_clearcoat", "KHR_texture_transform", "normal maps"] {
         let n = warnings.iter().filter(|w| w.contains(feature)).count();
         assert_eq!(n, 1, "{feature}: {warnings:#?}");
     }
     // Rendered now: no warning.
-    assert!(!warnings.iter().any(|w| w.contains("metallicRoughnessTexture")), "{warnings:#?}");
+    for feature in ["metallicRoughnessTexture", "alphaMode"] {
+        assert!(!warnings.iter().any(|w| w.contains(feature)), "{feature}: {warnings:#?}");
+    }
 }
 
 #[test]
@@ -440,4 +440,67 @@ fn an_unknown_material_override_names_the_gltf_file() {
         .expect_err("no such material")
         .to_string();
     assert!(err.contains("`q.gltf` has no material `nope`"), "{err}");
+}
+
+/// The lit scene with its front quad alpha-masked by a 2×1 map, transparent on its left
+/// half (u < 0.5) and opaque on its right, loaded as `alpha_mode` says ("OPAQUE" ignores
+/// the map's alpha), at 64×48 pixels.
+fn masked_scene(alpha_mode: &str) -> scene::LoadedScene {
+    let mut f = lit_scene(json!({ "name": "leaf", "alphaMode": alpha_mode, "alphaCutoff": 0.5,
+        "pbrMetallicRoughness": { "baseColorFactor": [1.0, 0.4, 0.0, 1.0],
+                                  "baseColorTexture": { "index": 0 } } }));
+    let image = f.png_rgba(2, 1, &[[255, 255, 255, 0], [255, 255, 255, 255]]);
+    assert_eq!(f.texture(image), 0);
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("leaf.glb"), f.glb()).expect("write");
+    let mut loaded = load_scene(dir.path(), "leaf.glb");
+    loaded.state.resolution = gridlight_actors::state::Resolution { width: 64, height: 48 };
+    loaded.state.render.spp = 16;
+    loaded
+}
+
+/// A MASK quad in front of a lit wall: the G-buffer and the rendered pixels see the wall
+/// through the cut-out half and the quad's orange on the kept half; drawn opaque, both
+/// halves are orange.
+#[test]
+fn an_alpha_masked_quad_shows_the_wall_through_its_cut_out_half_only() {
+    use crate::render::{primary_hit, render_pixels, RenderScene};
+    let render = |loaded: scene::LoadedScene| {
+        assert!(loaded.warnings.iter().all(|w| !w.contains("alpha")), "{:?}", loaded.warnings);
+        RenderScene::new(std::sync::Arc::new(loaded.assets), &loaded.state).expect("renders")
+    };
+    let (opaque, masked) = (render(masked_scene("OPAQUE")), render(masked_scene("MASK")));
+    // The pixels that see the middle of each half of the quad when it is opaque.
+    let nearest = |target: Vec3| {
+        (0..64 * 48)
+            .min_by(|&a, &b| {
+                let d = |p| (primary_hit(&opaque, p).position - target).length();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap()
+    };
+    let (cut, kept) = (nearest(Vec3::new(-0.25, 0.0, 0.0)), nearest(Vec3::new(0.25, 0.0, 0.0)));
+    // Green over red: 0.4 for the orange quad, 1 for the grey wall (indirect light off the
+    // quad's back tints the wall a little, noise moves both a little).
+    let orange = |v: Vec3| v.x > 0.0 && (v.y / v.x - 0.4).abs() < 0.1;
+    let grey = |v: Vec3| v.x > 0.0 && (v.y / v.x - 1.0).abs() < 0.15;
+    for (scene, cut_seen) in [(&opaque, "quad"), (&masked, "wall")] {
+        let (a, b) = (primary_hit(scene, cut), primary_hit(scene, kept));
+        // The G-buffer: position and albedo of what the pixel's centre sees.
+        assert!(b.position.z.abs() < 1e-3 && orange(b.albedo), "kept half: {b:?}");
+        let on_wall = (a.position.z + 1.0).abs() < 1e-3;
+        assert_eq!(on_wall, cut_seen == "wall", "cut half: {a:?}");
+        assert_eq!(grey(a.albedo), on_wall, "cut half's albedo: {a:?}");
+        // The rendered colour.
+        let mut out = Vec::new();
+        render_pixels(scene, 0, &[cut, kept], &mut out);
+        let colour = |s: &crate::render::PixelSample| s.reflected + s.emission;
+        assert!(orange(colour(&out[1])), "kept half renders {:?}", colour(&out[1]));
+        let c = colour(&out[0]);
+        assert!(if on_wall { grey(c) } else { orange(c) }, "cut half renders {c:?}");
+    }
+    // The CPU G-buffer the master composes with sees through the cut-out too.
+    let g = crate::gbuffer::GBuffer::from_scene(&masked, 1.0);
+    assert!((g.position[cut as usize].z + 1.0).abs() < 1e-3);
+    assert!(g.position[kept as usize].z.abs() < 1e-3);
 }
