@@ -246,7 +246,7 @@ fn index_wrap(i: i64, n: i64) -> usize {
 pub struct Assets {
     /// Geometry of every object, keyed by what the state names.
     pub meshes: HashMap<Geometry, Arc<Mesh>>,
-    /// Colour textures (albedo) by asset path (sRGB codes, read as linear RGB).
+    /// Colour textures (albedo, emission) by asset path (sRGB codes, read as linear RGB).
     pub textures: HashMap<String, Arc<Texture>>,
     /// Data textures (glTF's metallic-roughness and normal maps) by asset path (linear
     /// codes).
@@ -268,7 +268,7 @@ impl Assets {
     /// Stores the texture a material reads from asset path `path` as `usage`.
     pub fn insert_texture(&mut self, path: String, usage: TextureUse, texture: Arc<Texture>) {
         let map = match usage {
-            TextureUse::Color => &mut self.textures,
+            TextureUse::Color | TextureUse::Emission => &mut self.textures,
             TextureUse::Data | TextureUse::Normal => &mut self.data_textures,
         };
         map.insert(path, texture);
@@ -276,7 +276,7 @@ impl Assets {
 
     fn texture_map(&self, usage: TextureUse) -> &HashMap<String, Arc<Texture>> {
         match usage {
-            TextureUse::Color => &self.textures,
+            TextureUse::Color | TextureUse::Emission => &self.textures,
             TextureUse::Data | TextureUse::Normal => &self.data_textures,
         }
     }

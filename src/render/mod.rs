@@ -121,6 +121,9 @@ pub struct MaterialData {
     /// `Pbr` only: a tangent-space normal map, its xy scaled by `normal_scale`.
     pub normal_map: Option<Arc<Texture>>,
     pub normal_scale: f32,
+    /// `Pbr` only: an sRGB map multiplying `emission`. Such an emitter is not sampled by
+    /// next-event estimation (see [`MaterialData::emission_at`]).
+    pub emission_map: Option<Arc<Texture>>,
     /// Coverage factor (times the base colour map's alpha), its mode and mask cutoff.
     pub alpha: f32,
     pub alpha_mode: AlphaMode,
@@ -139,7 +142,28 @@ impl MaterialData {
     /// Whether a hit needs its texture coordinates.
     #[inline(always)]
     pub fn textured(&self) -> bool {
-        self.texture.is_some() || self.metallic_roughness.is_some() || self.normal_map.is_some()
+        self.texture.is_some()
+            || self.metallic_roughness.is_some()
+            || self.normal_map.is_some()
+            || self.emission_map.is_some()
+    }
+
+    /// Emitted radiance at texture coordinates `uv`: `emission` times the emission map.
+    #[inline(always)]
+    pub fn emission_at(&self, uv: Vec2) -> Vec3 {
+        match &self.emission_map {
+            Some(t) => self.emission * t.sample(uv),
+            None => self.emission,
+        }
+    }
+
+    /// Whether light sampling picks this material's triangles: emissive and uniform.
+    /// A mapped emitter is found by BSDF sampling alone (its light-sampling pdf is 0, so
+    /// MIS weighs what a path hits by 1): unbiased, noisier for small bright maps, where
+    /// sampling it would need the map's texels per triangle in the light table.
+    #[inline]
+    pub fn is_sampled_light(&self) -> bool {
+        self.is_emissive() && self.emission_map.is_none()
     }
 
     /// The scattering function at texture coordinates `uv`, of albedo `albedo`.
@@ -173,6 +197,8 @@ pub struct RenderScene {
     /// Whether some material is [`MaterialData::cutout`]: without one, hits are taken as
     /// found and shadow rays stop at any hit.
     pub(crate) cutouts: bool,
+    /// Whether some emissive material has an emission map.
+    pub(crate) mapped_emission: bool,
     pub(crate) lights: Lights,
     pub(crate) camera: CameraRays,
     triangles: usize,
@@ -191,6 +217,7 @@ impl RenderScene {
             materials: Vec::new(),
             slot_materials: Vec::new(),
             cutouts: false,
+            mapped_emission: false,
             lights: Lights::default(),
             camera,
             triangles: 0,
@@ -252,6 +279,7 @@ impl RenderScene {
         self.lights = Lights::new(areas, &state.lights, environment);
         self.tlas = Tlas::build(instances);
         self.cutouts = materials.iter().any(|m| m.cutout);
+        self.mapped_emission = materials.iter().any(|m| m.is_emissive() && !m.is_sampled_light());
         self.materials = materials;
         self.slot_materials = slot_materials;
         self.camera = camera;
@@ -327,6 +355,7 @@ impl RenderScene {
                     return Err(RenderError::BadMaterial { material: m.name.clone() });
                 }
                 let (mut texture, mut metallic_roughness, mut normal_map) = (None, None, None);
+                let mut emission_map = None;
                 for (path, usage) in m.textures() {
                     let tex = self.assets.texture(path, usage).ok_or_else(|| {
                         RenderError::MissingTexture { material: m.name.clone(), path: path.into() }
@@ -336,6 +365,7 @@ impl RenderScene {
                         TextureUse::Color => texture = Some(tex.clone()),
                         TextureUse::Data => metallic_roughness = Some(tex.clone()),
                         TextureUse::Normal => normal_map = Some(tex.clone()),
+                        TextureUse::Emission => emission_map = Some(tex.clone()),
                     }
                 }
                 let mut data = MaterialData {
@@ -350,6 +380,7 @@ impl RenderScene {
                     metallic_roughness,
                     normal_map,
                     normal_scale: m.normal_scale,
+                    emission_map,
                     alpha: m.alpha,
                     alpha_mode: m.alpha_mode,
                     alpha_cutoff: m.alpha_cutoff,
@@ -425,14 +456,14 @@ fn collect_emitters(
     out: &mut Vec<AreaLight>,
 ) {
     let mesh = &instance.blas.mesh;
-    if !bindings.iter().any(|&m| materials[m as usize].is_emissive()) {
+    if !bindings.iter().any(|&m| materials[m as usize].is_sampled_light()) {
         return;
     }
     let m = &instance.object_to_world;
     for (i, tri) in mesh.indices.iter().enumerate() {
         let slot = mesh.slot(i) as usize;
         let material = &materials[bindings[slot] as usize];
-        if !material.is_emissive() {
+        if !material.is_sampled_light() {
             continue;
         }
         let [a, b, c] = tri.map(|v| m.transform_point3(mesh.positions[v as usize]));

@@ -130,6 +130,7 @@ impl Origin {
                     TextureUse::Color => "texture",
                     TextureUse::Data => "metallic_roughness_map",
                     TextureUse::Normal => "normal_map",
+                    TextureUse::Emission => "emissive_map",
                 };
                 format!("{table}.{field}")
             }
@@ -312,10 +313,6 @@ impl Builder<'_> {
             AlphaModeDesc::Mask => AlphaMode::Mask,
             AlphaModeDesc::Blend => AlphaMode::Blend,
         };
-        if m.emissive_map.is_some() {
-            let what = "emissive_map: not rendered yet (emission is uniform)";
-            self.warnings.push(format!("material `{}`: {what}", m.name));
-        }
         Ok(Material {
             name: m.name.clone(),
             kind,

@@ -124,7 +124,7 @@ pub fn load_texture(
 /// A decoded image as a texture read as `usage` says; alpha is kept for colour maps only.
 pub fn texture_of(image: &image::DynamicImage, usage: TextureUse) -> Texture {
     match usage {
-        TextureUse::Color => albedo_texture(image),
+        TextureUse::Color | TextureUse::Emission => albedo_texture(image),
         TextureUse::Data | TextureUse::Normal => {
             let rgb = image.to_rgb8();
             let codes = rgb.pixels().map(|p| p.0).collect();

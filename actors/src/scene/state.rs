@@ -271,13 +271,14 @@ impl Material {
     }
 
     /// Every texture the material is rendered with: its asset path and how its texels
-    /// are read. The emissive map is not rendered yet, so not listed.
+    /// are read.
     pub fn textures(&self) -> impl Iterator<Item = (&str, TextureUse)> + '_ {
         let pbr = self.kind == MaterialKind::Pbr;
         [
             (self.base_color_texture.as_deref(), TextureUse::Color),
             (self.metallic_roughness_texture.as_deref().filter(|_| pbr), TextureUse::Data),
             (self.normal_texture.as_deref().filter(|_| pbr), TextureUse::Normal),
+            (self.emissive_texture.as_deref().filter(|_| pbr), TextureUse::Emission),
         ]
         .into_iter()
         .filter_map(|(path, usage)| Some((path?, usage)))
@@ -294,6 +295,9 @@ pub enum TextureUse {
     /// A tangent-space normal map: linear data as `Data`, kept apart only for the
     /// material that reads it.
     Normal,
+    /// sRGB-encoded emission (glTF's `emissiveTexture`): read as `Color`, kept apart only
+    /// for the material that reads it.
+    Emission,
 }
 
 /// A light that is not emissive geometry.

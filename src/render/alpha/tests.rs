@@ -112,6 +112,7 @@ fn a_mask_cuts_where_factor_times_map_alpha_is_below_the_cutoff() {
         metallic_roughness: None,
         normal_map: None,
         normal_scale: 1.0,
+        emission_map: None,
         alpha: 0.8,
         alpha_mode: AlphaMode::Mask,
         alpha_cutoff: 0.5,

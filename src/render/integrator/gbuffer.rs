@@ -75,7 +75,7 @@ fn seen_emission(scene: &RenderScene, hit: &Option<Hit>, d: Vec3) -> Vec3 {
         None => escaped(scene, d),
         Some(Hit::Light(q, _)) if -d.dot(q.normal) > 0.0 => q.radiance,
         Some(Hit::Surface(s)) if s.material.is_emissive() && -d.dot(s.ng) > 0.0 => {
-            s.material.emission
+            s.material.emission_at(s.uv)
         }
         _ => Vec3::ZERO,
     }

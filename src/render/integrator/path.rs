@@ -258,9 +258,13 @@ pub(in crate::render) fn arrive<'a>(
     if material.is_emissive() {
         let cos = (-d).dot(surface.ng);
         if cos > 0.0 {
-            let dist2 = (surface.p - o).length_squared();
-            let pdf = lights.area_pdf(material.emission, dist2, cos);
-            emit(material.emission, pdf, path, out);
+            let pdf = if material.is_sampled_light() {
+                let dist2 = (surface.p - o).length_squared();
+                lights.area_pdf(material.emission, dist2, cos)
+            } else {
+                0.0
+            };
+            emit(material.emission_at(surface.uv), pdf, path, out);
         }
     }
     let albedo = albedo_of(material, surface.uv);

@@ -1,13 +1,13 @@
 //! glTF metallic-roughness materials → gridlight's [`MaterialKind::Pbr`], which renders the
 //! specification's BRDF (`render::pbr`): base colour (factor × texture), metallic and
 //! roughness (factors × the metallic-roughness texture's B and G), `KHR_materials_ior`,
-//! `KHR_materials_transmission`'s factor, `emissiveFactor` ×
+//! `KHR_materials_transmission`'s factor, `emissiveFactor` × `emissiveTexture` (sRGB) ×
 //! `KHR_materials_emissive_strength`, alpha (the base colour factor's, times the base
 //! colour texture's alpha channel) with `alphaMode` MASK and BLEND (`render::alpha`).
-//! `doubleSided` and the emissive map are kept in the material too.
+//! `doubleSided` is kept in the material too.
 //!
 //! `normalTexture` is rendered too (`render::normal_map`), with tangents from each
-//! triangle's texture coordinates. What is not rendered (occlusion and emissive maps, the
+//! triangle's texture coordinates. What is not rendered (occlusion maps, the
 //! transmission texture, texture sets other than 0, wrap modes other than
 //! repeat) and the normal maps' tangents are warned about once per feature.
 
@@ -67,7 +67,7 @@ pub fn convert(m: &gltf::Material, asset: &str, warnings: &mut Warnings) -> Gltf
             .map(|i| texture_key(asset, &i, warnings)),
         normal_texture: normal.as_ref().map(|t| image_key(asset, &t.texture().source())),
         normal_scale: normal.as_ref().map_or(1.0, |t| t.scale()),
-        emissive_texture: m.emissive_texture().map(|i| image_key(asset, &i.texture().source())),
+        emissive_texture: m.emissive_texture().map(|i| texture_key(asset, &i, warnings)),
     };
     warn_unrendered(&material, m, warnings);
     GltfMaterial { name, material }
@@ -93,10 +93,6 @@ fn warn_unrendered(p: &Material, m: &gltf::Material, warnings: &mut Warnings) {
              TANGENT attribute and MikkTSpace tangents are not used yet)",
         ),
         (m.occlusion_texture().is_some(), "occlusion maps (occlusionTexture): not rendered"),
-        (
-            p.emissive_texture.is_some(),
-            "emissiveTexture: not rendered (the emissive factor is used uniformly)",
-        ),
         (
             m.transmission().is_some_and(|t| t.transmission_texture().is_some()),
             "transmissionTexture: not rendered (the transmission factor is used)",

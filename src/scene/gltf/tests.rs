@@ -504,3 +504,41 @@ fn an_alpha_masked_quad_shows_the_wall_through_its_cut_out_half_only() {
     assert!((g.position[cut as usize].z + 1.0).abs() < 1e-3);
     assert!(g.position[kept as usize].z.abs() < 1e-3);
 }
+
+/// `emissiveFactor` × `emissiveTexture` (sRGB) × `KHR_materials_emissive_strength`: the lit
+/// scene's quad emits red on its left half and blue on its right, twice the map's codes;
+/// the G-buffer's emission plane and the rendered pixels see it, and no warning is given.
+#[test]
+fn an_emission_map_colours_the_emitter_in_the_gbuffer_and_the_render() {
+    use crate::render::{primary_hit, render_pixels, RenderScene};
+    let mut f = lit_scene(json!({ "name": "sign", "emissiveFactor": [1.0, 1.0, 0.5],
+        "emissiveTexture": { "index": 0 },
+        "extensions": { "KHR_materials_emissive_strength": { "emissiveStrength": 2.0 } },
+        "pbrMetallicRoughness": { "baseColorFactor": [0.0, 0.0, 0.0, 1.0] } }));
+    let (image, _) = f.png(2, 1, &[[255, 0, 0], [0, 0, 255]], None);
+    assert_eq!(f.texture(image), 0);
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("sign.glb"), f.glb()).expect("write");
+    let mut loaded = load_scene(dir.path(), "sign.glb");
+    assert!(loaded.warnings.iter().all(|w| !w.contains("emissive")), "{:?}", loaded.warnings);
+    loaded.state.resolution = gridlight_actors::state::Resolution { width: 64, height: 48 };
+    loaded.state.render.spp = 4;
+    let scene = RenderScene::new(std::sync::Arc::new(loaded.assets), &loaded.state).unwrap();
+    let nearest = |target: Vec3| {
+        (0..64 * 48)
+            .min_by(|&a, &b| {
+                let d = |p| (primary_hit(&scene, p).position - target).length();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap()
+    };
+    let (left, right) = (nearest(Vec3::new(-0.25, 0.0, 0.0)), nearest(Vec3::new(0.25, 0.0, 0.0)));
+    let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 0.25;
+    let g = crate::gbuffer::GBuffer::from_scene(&scene, 1.0);
+    let (red, blue) = (Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
+    assert!(close(g.emission[left as usize], red), "{}", g.emission[left as usize]);
+    assert!(close(g.emission[right as usize], blue), "{}", g.emission[right as usize]);
+    let mut out = Vec::new();
+    render_pixels(&scene, 0, &[left, right], &mut out);
+    assert!(close(out[0].emission, red) && close(out[1].emission, blue), "{out:?}");
+}
