@@ -41,7 +41,7 @@ pub fn can_let_through(m: &MaterialData) -> bool {
 #[inline(always)]
 pub fn coverage(m: &MaterialData, uv: Vec2) -> f32 {
     match &m.texture {
-        Some(t) => m.alpha * t.sample_alpha(uv),
+        Some(t) => m.alpha * t.sample_alpha(uv, m.lookups.base_color.as_ref()),
         None => m.alpha,
     }
 }

@@ -37,7 +37,7 @@ use std::sync::Arc;
 use glam::{Affine3A, Vec2, Vec3};
 use gridlight_actors::state::{AlphaMode, Geometry, MaterialKind, SceneState, TextureUse};
 
-use crate::assets::{Assets, Mesh, Texture};
+use crate::assets::{Assets, Lookup, Mesh, Texture};
 use crate::shapes;
 use accel::{Blas, Instance, MeshError, Tlas};
 use camera::{CameraError, CameraRays};
@@ -102,6 +102,15 @@ pub struct PixelSample {
     pub object: u32,
 }
 
+/// Each map's lookup where it is not the default (repeat, untransformed).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Lookups {
+    pub base_color: Option<Lookup>,
+    pub metallic_roughness: Option<Lookup>,
+    pub normal: Option<Lookup>,
+    pub emissive: Option<Lookup>,
+}
+
 /// A material with its texture resolved.
 #[derive(Clone, Debug)]
 pub struct MaterialData {
@@ -128,6 +137,8 @@ pub struct MaterialData {
     pub alpha: f32,
     pub alpha_mode: AlphaMode,
     pub alpha_cutoff: f32,
+    /// How each map is looked up (wrap modes, texture transform).
+    pub lookups: Lookups,
     /// Whether some hit on this material can let a ray through ([`alpha::can_let_through`]):
     /// checked before any texture lookup, so opaque materials cost nothing.
     pub cutout: bool,
@@ -152,7 +163,7 @@ impl MaterialData {
     #[inline(always)]
     pub fn emission_at(&self, uv: Vec2) -> Vec3 {
         match &self.emission_map {
-            Some(t) => self.emission * t.sample(uv),
+            Some(t) => self.emission * t.sample_with(uv, self.lookups.emissive.as_ref()),
             None => self.emission,
         }
     }
@@ -173,7 +184,7 @@ impl MaterialData {
             MaterialKind::Pbr => {
                 let (mut metallic, mut roughness) = (self.metallic, self.roughness);
                 if let Some(t) = &self.metallic_roughness {
-                    let texel = t.sample(uv);
+                    let texel = t.sample_with(uv, self.lookups.metallic_roughness.as_ref());
                     metallic *= texel.z;
                     roughness *= texel.y;
                 }
@@ -338,6 +349,7 @@ impl RenderScene {
             .iter()
             .map(|m| {
                 let unit = |v: f32| (0.0..=1.0).contains(&v);
+                let l = &m.lookups;
                 let ok = m.base_color.is_finite()
                     && m.base_color.min_element() >= 0.0
                     && m.emission.is_finite()
@@ -350,7 +362,10 @@ impl RenderScene {
                     && unit(m.transmission)
                     && unit(m.alpha)
                     && unit(m.alpha_cutoff)
-                    && m.normal_scale.is_finite();
+                    && m.normal_scale.is_finite()
+                    && [l.base_color, l.metallic_roughness, l.normal, l.emissive]
+                        .iter()
+                        .all(|l| l.is_finite());
                 if !ok {
                     return Err(RenderError::BadMaterial { material: m.name.clone() });
                 }
@@ -381,6 +396,12 @@ impl RenderScene {
                     normal_map,
                     normal_scale: m.normal_scale,
                     emission_map,
+                    lookups: Lookups {
+                        base_color: Lookup::new(&l.base_color),
+                        metallic_roughness: Lookup::new(&l.metallic_roughness),
+                        normal: Lookup::new(&l.normal),
+                        emissive: Lookup::new(&l.emissive),
+                    },
                     alpha: m.alpha,
                     alpha_mode: m.alpha_mode,
                     alpha_cutoff: m.alpha_cutoff,

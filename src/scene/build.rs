@@ -334,6 +334,7 @@ impl Builder<'_> {
             normal_scale: self
                 .scalar(m.normal_scale.unwrap_or(1.0), &format!("{key}.normal_scale"))?,
             emissive_texture: m.emissive_map.clone(),
+            lookups: Default::default(),
         })
     }
 

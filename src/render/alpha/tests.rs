@@ -113,6 +113,7 @@ fn a_mask_cuts_where_factor_times_map_alpha_is_below_the_cutoff() {
         normal_map: None,
         normal_scale: 1.0,
         emission_map: None,
+        lookups: Default::default(),
         alpha: 0.8,
         alpha_mode: AlphaMode::Mask,
         alpha_cutoff: 0.5,

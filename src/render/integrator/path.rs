@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3};
 
 use super::nee::{next_event, ShadowRay};
 use super::{MIN_ALBEDO, RR_START_DEPTH};
-use crate::assets::Mesh;
+use crate::assets::{Lookup, Mesh};
 use crate::render::alpha::{covering, still_blocked, Found};
 use crate::render::isa::{Cpu, Isa};
 use crate::render::lights::AreaLight;
@@ -108,9 +108,11 @@ fn resolve<'a>(scene: &'a RenderScene, o: Vec3, d: Vec3, found: Found) -> Option
     if let (Some(map), Some(idx)) = (&material.normal_map, idx) {
         if !mesh.uvs.is_empty() {
             let positions = idx.map(|i| mesh.positions[i as usize]);
-            let uvs = idx.map(|i| mesh.uvs[i as usize]);
+            // A transformed map's tangents follow its transformed coordinates.
+            let lookup = material.lookups.normal.as_ref();
+            let uvs = idx.map(|i| Lookup::transform(lookup, mesh.uvs[i as usize]));
             if let Some(frame) = triangle_tangents(positions, uvs, &inst.object_to_world) {
-                ns = bend(map, material.normal_scale, uv, ns, ng, frame);
+                ns = bend(map, lookup, material.normal_scale, uv, ns, ng, frame);
             }
         }
     }
@@ -143,7 +145,7 @@ pub(super) fn mis(a: f32, b: f32) -> f32 {
 #[inline]
 pub(super) fn albedo_of(material: &MaterialData, uv: Vec2) -> Vec3 {
     match &material.texture {
-        Some(t) => t.sample(uv) * material.base_color,
+        Some(t) => t.sample_with(uv, material.lookups.base_color.as_ref()) * material.base_color,
         None => material.base_color,
     }
 }

@@ -309,10 +309,10 @@ fn unsupported_features_are_each_warned_about_once() {
     f.node(json!({ "mesh": m0 }), true);
     f.node(json!({ "mesh": m1 }), true);
     f.uses("KHR_materials_clearcoat");
-    f.uses("KHR_texture_transform");
-    f.json["extensionsRequired"] = json!(["KHR_texture_transform"]);
+    f.uses("KHR_materials_sheen");
+    f.json["extensionsRequired"] = json!(["KHR_materials_sheen"]);
     let warnings = read_glb(&f).expect("loads").warnings.into_vec();
-    for feature in ["KHR_materials_clearcoat", "KHR_texture_transform", "normal maps"] {
+    for feature in ["KHR_materials_clearcoat", "KHR_materials_sheen", "normal maps"] {
         let n = warnings.iter().filter(|w| w.contains(feature)).count();
         assert_eq!(n, 1, "{feature}: {warnings:#?}");
     }
@@ -541,4 +541,44 @@ fn an_emission_map_colours_the_emitter_in_the_gbuffer_and_the_render() {
     let mut out = Vec::new();
     render_pixels(&scene, 0, &[left, right], &mut out);
     assert!(close(out[0].emission, red) && close(out[1].emission, blue), "{out:?}");
+}
+
+/// Sampler wrap modes and `KHR_texture_transform` reach each map's lookup, with no warning;
+/// a transform's `texCoord` override to set 1 is warned about.
+#[test]
+fn wrap_modes_and_texture_transforms_reach_each_maps_lookup() {
+    use gridlight_actors::state::{MapLookup, Wrap};
+    let mut f = Fixture::new();
+    let (img, _) = f.png(1, 1, &[[9, 9, 9]], None);
+    // 33071 CLAMP_TO_EDGE, 33648 MIRRORED_REPEAT.
+    let sampler = f.push("samplers", json!({ "wrapS": 33071, "wrapT": 33648 }));
+    let clamped = f.push("textures", json!({ "source": img, "sampler": sampler }));
+    let plain = f.texture(img);
+    let transform = json!({ "KHR_texture_transform":
+        { "offset": [0.5, 0.25], "rotation": 0.3, "scale": [2.0, 3.0] } });
+    f.push(
+        "materials",
+        json!({ "name": "m",
+                "normalTexture": { "index": plain, "extensions": transform },
+                "emissiveTexture": { "index": plain,
+                    "extensions": { "KHR_texture_transform": { "texCoord": 1 } } },
+                "pbrMetallicRoughness": { "baseColorTexture": { "index": clamped } } }),
+    );
+    let mesh = f.quad_mesh(Some(0), 2);
+    f.node(json!({ "mesh": mesh }), true);
+    f.uses("KHR_texture_transform");
+    let data = read_glb(&f).expect("loads");
+    let l = data.materials[0].material.lookups;
+    assert_eq!(l.base_color.wrap, [Wrap::ClampToEdge, Wrap::MirroredRepeat]);
+    assert!(l.base_color.offset == glam::Vec2::ZERO && l.metallic_roughness.is_plain());
+    let expected = MapLookup {
+        wrap: [Wrap::Repeat; 2],
+        offset: glam::Vec2::new(0.5, 0.25),
+        rotation: 0.3,
+        scale: glam::Vec2::new(2.0, 3.0),
+    };
+    assert_eq!(l.normal, expected);
+    let warnings = data.warnings.into_vec();
+    assert!(!warnings.iter().any(|w| w.contains("wrap") || w.contains("KHR_texture_transform")));
+    assert_eq!(warnings.iter().filter(|w| w.contains("TEXCOORD_1")).count(), 1, "{warnings:?}");
 }
