@@ -8,9 +8,10 @@
 //! and returns what reconstruction needs per pixel (docs/design.md): demodulated
 //! radiance, directly seen emission and the primary hit's G-buffer values.
 //!
-//! Modules: [`accel`] (BVHs), [`alpha`] (cut-out and blended surfaces), [`sampler`] (scrambled Sobol), [`camera`],
-//! [`bsdf`], [`microfacet`] and [`pbr`] (materials), [`lights`] and [`envmap`] (emitters),
-//! [`integrator`] (the path loop); [`gpu`] the same kernel in WGSL for GPU workers.
+//! Modules: [`accel`] (BVHs), [`alpha`] (cut-out and blended surfaces), [`sampler`]
+//! (scrambled Sobol), [`camera`], [`bsdf`], [`microfacet`] and [`pbr`] (materials),
+//! [`lights`] and [`envmap`] (emitters), [`integrator`] (the path loop); [`gpu`] the same
+//! kernel in WGSL for GPU workers.
 
 pub mod accel;
 pub mod alpha;
