@@ -142,7 +142,8 @@ fn pbr_keys_load_and_pbr_only_keys_need_the_pbr_kind() {
     image::RgbImage::from_pixel(1, 1, image::Rgb([0, 51, 255])).save(&png).expect("png");
     let brass = "[[materials]]\nname = \"white\"\nkind = \"pbr\"\nmetallic = 1.0\n\
                  roughness = 0.5\ntransmission = 0.25\nemission = [1, 1, 1]\n\
-                 emission_strength = 3.0\nmetallic_roughness_map = \"mr.png\"\n";
+                 emission_strength = 3.0\nmetallic_roughness_map = \"mr.png\"\n\
+                 emissive_map = \"mr.png\"\n";
     let path = dir.path().join("ok.toml");
     std::fs::write(&path, format!("{CAMERA}{brass}{CUBE}")).expect("write");
     let loaded = scene::load(&path, &AssetSearchPath::new(&[], None, Some(&path))).expect("loads");
@@ -153,6 +154,11 @@ fn pbr_keys_load_and_pbr_only_keys_need_the_pbr_kind() {
     let map = loaded.assets.data_textures.get("mr.png").expect("the map is loaded as data");
     // Linear: G 51 → roughness × 0.2, B 255 → metallic × 1.
     assert!((map.texels.get(0) - glam::Vec3::new(0.0, 0.2, 1.0)).length() < 1e-6);
+    // The same file as the emission map is read as sRGB colour, with no warning.
+    let emission = loaded.assets.textures.get("mr.png").expect("the emission map is loaded");
+    assert_eq!(emission.texels.get(0).z, 1.0);
+    assert!((emission.texels.get(0).y - gridlight::assets::srgb_to_linear(51)).abs() < 1e-7);
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
 
     let metal_diffuse = "[[materials]]\nname = \"white\"\nmetallic = 1.0\n";
     assert_names(
@@ -175,4 +181,34 @@ fn pbr_keys_load_and_pbr_only_keys_need_the_pbr_kind() {
         "materials[0].normal_map",
         &["n.png", "not found"],
     );
+}
+
+#[test]
+fn alpha_keys_load_without_warnings_and_bad_alpha_values_name_the_key() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = dir.path().join("assets/leaf.png");
+    std::fs::create_dir_all(png.parent().expect("parent")).expect("mkdir");
+    let leaf =
+        image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba([9, 200, 9, [0, 255][x as usize]]));
+    leaf.save(&png).expect("png");
+    let masked = "[[materials]]\nname = \"white\"\ntexture = \"leaf.png\"\nalpha = 0.9\n\
+                  alpha_mode = \"mask\"\nalpha_cutoff = 0.3\n";
+    let path = dir.path().join("ok.toml");
+    std::fs::write(&path, format!("{CAMERA}{masked}{CUBE}")).expect("write");
+    let loaded = scene::load(&path, &AssetSearchPath::new(&[], None, Some(&path))).expect("loads");
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let m = &loaded.state.materials[0];
+    assert_eq!(m.alpha_mode, gridlight_actors::state::AlphaMode::Mask);
+    assert_eq!((m.alpha, m.alpha_cutoff), (0.9, 0.3));
+    let map = loaded.assets.textures.get("leaf.png").expect("the map is loaded");
+    assert_eq!(map.alpha.as_deref(), Some(&[0u8, 255][..]), "its alpha is kept");
+
+    for (key, line, problem) in [
+        ("alpha_mode", "alpha_mode = \"cutout\"", "cutout"),
+        ("alpha", "alpha = 1.5", "[0, 1]"),
+        ("alpha_cutoff", "alpha_cutoff = -0.5", "[0, 1]"),
+    ] {
+        let bad = format!("[[materials]]\nname = \"white\"\n{line}\n");
+        assert_names(&format!("{CAMERA}{bad}{CUBE}"), &[], key, &[problem]);
+    }
 }

@@ -2,7 +2,7 @@
 //! split of the byte stream decodes to the same messages.
 
 use bytes::BytesMut;
-use glam::{Quat, Vec3};
+use glam::{Quat, Vec2, Vec3};
 use gridlight_actors::codec::{MasterCodec, WorkerCodec};
 use gridlight_actors::protocol::*;
 use gridlight_actors::state::*;
@@ -72,7 +72,18 @@ fn material() -> impl Strategy<Value = Material> {
     let base = ("[a-z]{1,8}", kind, vec3(), map(), 0f32..1.0, 1f32..2.5, vec3(), 0f32..10.0);
     let pbr = (0f32..1.0, 0f32..1.0, 0f32..1.0, alpha_mode, 0f32..1.0, any::<bool>());
     let maps = (map(), map(), 0f32..2.0, map());
-    (base, pbr, maps).prop_map(|(base, pbr, maps)| {
+    let wrap =
+        || prop_oneof![Just(Wrap::Repeat), Just(Wrap::ClampToEdge), Just(Wrap::MirroredRepeat)];
+    let lookup =
+        (wrap(), wrap(), -2f32..2.0, -4f32..4.0, 0.1f32..3.0).prop_map(|(s, t, o, r, k)| {
+            MapLookup {
+                wrap: [s, t],
+                offset: Vec2::new(o, -o),
+                rotation: r,
+                scale: Vec2::new(k, 1.0),
+            }
+        });
+    (base, pbr, maps, lookup).prop_map(|(base, pbr, maps, lookup)| {
         let (name, kind, base_color, base_color_texture, roughness, ior, emission, strength) = base;
         let (metallic, transmission, alpha, alpha_mode, alpha_cutoff, double_sided) = pbr;
         let (metallic_roughness_texture, normal_texture, normal_scale, emissive_texture) = maps;
@@ -95,6 +106,7 @@ fn material() -> impl Strategy<Value = Material> {
             normal_texture,
             normal_scale,
             emissive_texture,
+            lookups: MapLookups { normal: lookup, ..MapLookups::default() },
         }
     })
 }

@@ -176,6 +176,14 @@ impl GpuGBuffer {
             self.targets = Some(Targets::new(&self.ctx.device, res.width, res.height));
         }
         let scale = self.scale.get(state, &self.assets);
+        if self.scene.cutouts || self.scene.mapped_emission {
+            // The raster pass draws every triangle whole with one emission per draw;
+            // alpha-masked and blended surfaces (`render::alpha`) and emission maps are
+            // the CPU probe's only, so it draws this state.
+            let g = GBuffer::from_scene(&self.scene, scale);
+            self.last_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+            return Ok(g);
+        }
         let (eye, view_proj) = self.scene.camera.raster_view(NEAR * scale);
         let view = ViewUniform {
             view_proj: view_proj.to_cols_array_2d(),

@@ -8,11 +8,13 @@
 //! and returns what reconstruction needs per pixel (docs/design.md): demodulated
 //! radiance, directly seen emission and the primary hit's G-buffer values.
 //!
-//! Modules: [`accel`] (BVHs), [`sampler`] (scrambled Sobol), [`camera`],
-//! [`bsdf`], [`microfacet`] and [`pbr`] (materials), [`lights`] and [`envmap`] (emitters),
-//! [`integrator`] (the path loop); [`gpu`] the same kernel in WGSL for GPU workers.
+//! Modules: [`accel`] (BVHs), [`alpha`] (cut-out and blended surfaces), [`sampler`]
+//! (scrambled Sobol), [`camera`], [`bsdf`], [`microfacet`] and [`pbr`] (materials),
+//! [`lights`] and [`envmap`] (emitters), [`integrator`] (the path loop); [`gpu`] the same
+//! kernel in WGSL for GPU workers.
 
 pub mod accel;
+pub mod alpha;
 pub mod bsdf;
 pub mod camera;
 pub mod envmap;
@@ -35,9 +37,9 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use glam::{Affine3A, Vec2, Vec3};
-use gridlight_actors::state::{Geometry, MaterialKind, SceneState, TextureUse};
+use gridlight_actors::state::{AlphaMode, Geometry, MaterialKind, SceneState, TextureUse};
 
-use crate::assets::{Assets, Mesh, Texture};
+use crate::assets::{Assets, Lookup, Mesh, Texture};
 use crate::shapes;
 use accel::{Blas, Instance, MeshError, Tlas};
 use camera::{CameraError, CameraRays};
@@ -102,6 +104,15 @@ pub struct PixelSample {
     pub object: u32,
 }
 
+/// Each map's lookup where it is not the default (repeat, untransformed).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Lookups {
+    pub base_color: Option<Lookup>,
+    pub metallic_roughness: Option<Lookup>,
+    pub normal: Option<Lookup>,
+    pub emissive: Option<Lookup>,
+}
+
 /// A material with its texture resolved.
 #[derive(Clone, Debug)]
 pub struct MaterialData {
@@ -121,6 +132,18 @@ pub struct MaterialData {
     /// `Pbr` only: a tangent-space normal map, its xy scaled by `normal_scale`.
     pub normal_map: Option<Arc<Texture>>,
     pub normal_scale: f32,
+    /// `Pbr` only: an sRGB map multiplying `emission`. Such an emitter is not sampled by
+    /// next-event estimation (see [`MaterialData::emission_at`]).
+    pub emission_map: Option<Arc<Texture>>,
+    /// Coverage factor (times the base colour map's alpha), its mode and mask cutoff.
+    pub alpha: f32,
+    pub alpha_mode: AlphaMode,
+    pub alpha_cutoff: f32,
+    /// How each map is looked up (wrap modes, texture transform).
+    pub lookups: Lookups,
+    /// Whether some hit on this material can let a ray through ([`alpha::can_let_through`]):
+    /// checked before any texture lookup, so opaque materials cost nothing.
+    pub cutout: bool,
 }
 
 impl MaterialData {
@@ -132,7 +155,28 @@ impl MaterialData {
     /// Whether a hit needs its texture coordinates.
     #[inline(always)]
     pub fn textured(&self) -> bool {
-        self.texture.is_some() || self.metallic_roughness.is_some() || self.normal_map.is_some()
+        self.texture.is_some()
+            || self.metallic_roughness.is_some()
+            || self.normal_map.is_some()
+            || self.emission_map.is_some()
+    }
+
+    /// Emitted radiance at texture coordinates `uv`: `emission` times the emission map.
+    #[inline(always)]
+    pub fn emission_at(&self, uv: Vec2) -> Vec3 {
+        match &self.emission_map {
+            Some(t) => self.emission * t.sample_with(uv, self.lookups.emissive.as_ref()),
+            None => self.emission,
+        }
+    }
+
+    /// Whether light sampling picks this material's triangles: emissive and uniform.
+    /// A mapped emitter is found by BSDF sampling alone (its light-sampling pdf is 0, so
+    /// MIS weighs what a path hits by 1): unbiased, noisier for small bright maps, where
+    /// sampling it would need the map's texels per triangle in the light table.
+    #[inline]
+    pub fn is_sampled_light(&self) -> bool {
+        self.is_emissive() && self.emission_map.is_none()
     }
 
     /// The scattering function at texture coordinates `uv`, of albedo `albedo`.
@@ -142,7 +186,7 @@ impl MaterialData {
             MaterialKind::Pbr => {
                 let (mut metallic, mut roughness) = (self.metallic, self.roughness);
                 if let Some(t) = &self.metallic_roughness {
-                    let texel = t.sample(uv);
+                    let texel = t.sample_with(uv, self.lookups.metallic_roughness.as_ref());
                     metallic *= texel.z;
                     roughness *= texel.y;
                 }
@@ -163,6 +207,11 @@ pub struct RenderScene {
     pub(crate) materials: Vec<MaterialData>,
     /// Per instance (from `Instance::material_base`): material of each slot.
     pub(crate) slot_materials: Vec<u32>,
+    /// Whether some material is [`MaterialData::cutout`]: without one, hits are taken as
+    /// found and shadow rays stop at any hit.
+    pub(crate) cutouts: bool,
+    /// Whether some emissive material has an emission map.
+    pub(crate) mapped_emission: bool,
     pub(crate) lights: Lights,
     pub(crate) camera: CameraRays,
     triangles: usize,
@@ -180,6 +229,8 @@ impl RenderScene {
             tlas: Tlas::build(Vec::new()),
             materials: Vec::new(),
             slot_materials: Vec::new(),
+            cutouts: false,
+            mapped_emission: false,
             lights: Lights::default(),
             camera,
             triangles: 0,
@@ -240,6 +291,8 @@ impl RenderScene {
         }
         self.lights = Lights::new(areas, &state.lights, environment);
         self.tlas = Tlas::build(instances);
+        self.cutouts = materials.iter().any(|m| m.cutout);
+        self.mapped_emission = materials.iter().any(|m| m.is_emissive() && !m.is_sampled_light());
         self.materials = materials;
         self.slot_materials = slot_materials;
         self.camera = camera;
@@ -298,6 +351,7 @@ impl RenderScene {
             .iter()
             .map(|m| {
                 let unit = |v: f32| (0.0..=1.0).contains(&v);
+                let l = &m.lookups;
                 let ok = m.base_color.is_finite()
                     && m.base_color.min_element() >= 0.0
                     && m.emission.is_finite()
@@ -308,11 +362,17 @@ impl RenderScene {
                     && m.ior.is_finite()
                     && unit(m.metallic)
                     && unit(m.transmission)
-                    && m.normal_scale.is_finite();
+                    && unit(m.alpha)
+                    && unit(m.alpha_cutoff)
+                    && m.normal_scale.is_finite()
+                    && [l.base_color, l.metallic_roughness, l.normal, l.emissive]
+                        .iter()
+                        .all(|l| l.is_finite());
                 if !ok {
                     return Err(RenderError::BadMaterial { material: m.name.clone() });
                 }
                 let (mut texture, mut metallic_roughness, mut normal_map) = (None, None, None);
+                let mut emission_map = None;
                 for (path, usage) in m.textures() {
                     let tex = self.assets.texture(path, usage).ok_or_else(|| {
                         RenderError::MissingTexture { material: m.name.clone(), path: path.into() }
@@ -322,9 +382,10 @@ impl RenderScene {
                         TextureUse::Color => texture = Some(tex.clone()),
                         TextureUse::Data => metallic_roughness = Some(tex.clone()),
                         TextureUse::Normal => normal_map = Some(tex.clone()),
+                        TextureUse::Emission => emission_map = Some(tex.clone()),
                     }
                 }
-                Ok(MaterialData {
+                let mut data = MaterialData {
                     kind: m.kind,
                     base_color: m.base_color,
                     texture,
@@ -336,7 +397,20 @@ impl RenderScene {
                     metallic_roughness,
                     normal_map,
                     normal_scale: m.normal_scale,
-                })
+                    emission_map,
+                    lookups: Lookups {
+                        base_color: Lookup::new(&l.base_color),
+                        metallic_roughness: Lookup::new(&l.metallic_roughness),
+                        normal: Lookup::new(&l.normal),
+                        emissive: Lookup::new(&l.emissive),
+                    },
+                    alpha: m.alpha,
+                    alpha_mode: m.alpha_mode,
+                    alpha_cutoff: m.alpha_cutoff,
+                    cutout: false,
+                };
+                data.cutout = alpha::can_let_through(&data);
+                Ok(data)
             })
             .collect()
     }
@@ -405,14 +479,14 @@ fn collect_emitters(
     out: &mut Vec<AreaLight>,
 ) {
     let mesh = &instance.blas.mesh;
-    if !bindings.iter().any(|&m| materials[m as usize].is_emissive()) {
+    if !bindings.iter().any(|&m| materials[m as usize].is_sampled_light()) {
         return;
     }
     let m = &instance.object_to_world;
     for (i, tri) in mesh.indices.iter().enumerate() {
         let slot = mesh.slot(i) as usize;
         let material = &materials[bindings[slot] as usize];
-        if !material.is_emissive() {
+        if !material.is_sampled_light() {
             continue;
         }
         let [a, b, c] = tri.map(|v| m.transform_point3(mesh.positions[v as usize]));

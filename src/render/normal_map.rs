@@ -10,7 +10,7 @@
 
 use glam::{Affine3A, Vec2, Vec3};
 
-use crate::assets::Texture;
+use crate::assets::{Lookup, Texture};
 
 /// The triangle `positions`/`uvs` (object space) seen through `to_world`: its world-space
 /// ∂P/∂u and ∂P/∂v, `None` where its texture coordinates are degenerate.
@@ -32,12 +32,14 @@ pub fn triangle_tangents(
     Some((to_world.transform_vector3(dpdu), to_world.transform_vector3(dpdv)))
 }
 
-/// The shading normal `ns` bent by `map`'s texel at `uv` (xy scaled by `scale`), in the
+/// The shading normal `ns` bent by `map`'s texel at `uv` (looked up as `lookup` says; xy
+/// scaled by `scale`), in the
 /// frame of `dpdu`, `dpdv`; `ns` itself where that frame or the result is degenerate or
 /// the bent normal would face away from the geometric normal `ng`.
 #[inline]
 pub fn bend(
     map: &Texture,
+    lookup: Option<&Lookup>,
     scale: f32,
     uv: Vec2,
     ns: Vec3,
@@ -52,7 +54,7 @@ pub fn bend(
     // their handedness.
     let b = ns.cross(t);
     let b = if b.dot(dpdv) < 0.0 { -b } else { b };
-    let texel = map.sample(uv) * 2.0 - Vec3::ONE;
+    let texel = map.sample_with(uv, lookup) * 2.0 - Vec3::ONE;
     let n = (t * (texel.x * scale) + b * (texel.y * scale) + ns * texel.z).normalize_or_zero();
     if n.dot(ng) <= 0.0 {
         return ns;
@@ -71,17 +73,17 @@ mod tests {
         let frame = triangle_tangents(positions, uvs, &Affine3A::IDENTITY).unwrap();
         assert_eq!(frame, (Vec3::X, Vec3::NEG_Z));
         let flat = Texture::linear(1, 1, vec![Vec3::new(0.5, 0.5, 1.0)]);
-        assert_eq!(bend(&flat, 1.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame), Vec3::Y);
+        assert_eq!(bend(&flat, None, 1.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame), Vec3::Y);
         // 30° towards +u, then towards +v, in texel encoding (n + 1) / 2.
         let (s, c) = (0.5f32, 0.75f32.sqrt());
         let towards_u = Texture::linear(1, 1, vec![Vec3::new(s + 1.0, 1.0, c + 1.0) * 0.5]);
-        let n = bend(&towards_u, 1.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame);
+        let n = bend(&towards_u, None, 1.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame);
         assert!((n - Vec3::new(s, c, 0.0)).length() < 1e-5, "{n}");
         let towards_v = Texture::linear(1, 1, vec![Vec3::new(1.0, s + 1.0, c + 1.0) * 0.5]);
-        let n = bend(&towards_v, 1.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame);
+        let n = bend(&towards_v, None, 1.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame);
         assert!((n - Vec3::new(0.0, c, -s)).length() < 1e-5, "{n}");
         // A scale of 0 flattens the map; degenerate uvs leave the normal alone.
-        assert_eq!(bend(&towards_u, 0.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame), Vec3::Y);
+        assert_eq!(bend(&towards_u, None, 0.0, Vec2::ZERO, Vec3::Y, Vec3::Y, frame), Vec3::Y);
         assert!(triangle_tangents(positions, [Vec2::ZERO; 3], &Affine3A::IDENTITY).is_none());
     }
 

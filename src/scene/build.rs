@@ -130,6 +130,7 @@ impl Origin {
                     TextureUse::Color => "texture",
                     TextureUse::Data => "metallic_roughness_map",
                     TextureUse::Normal => "normal_map",
+                    TextureUse::Emission => "emissive_map",
                 };
                 format!("{table}.{field}")
             }
@@ -312,15 +313,6 @@ impl Builder<'_> {
             AlphaModeDesc::Mask => AlphaMode::Mask,
             AlphaModeDesc::Blend => AlphaMode::Blend,
         };
-        let unrendered = [
-            (m.emissive_map.is_some(), "emissive_map: not rendered yet (emission is uniform)"),
-            (alpha_mode != AlphaMode::Opaque, "alpha_mode mask and blend: drawn opaque"),
-        ];
-        for (used, what) in unrendered {
-            if used {
-                self.warnings.push(format!("material `{}`: {what}", m.name));
-            }
-        }
         Ok(Material {
             name: m.name.clone(),
             kind,
@@ -342,6 +334,7 @@ impl Builder<'_> {
             normal_scale: self
                 .scalar(m.normal_scale.unwrap_or(1.0), &format!("{key}.normal_scale"))?,
             emissive_texture: m.emissive_map.clone(),
+            lookups: Default::default(),
         })
     }
 

@@ -201,7 +201,7 @@ pub struct MaterialDesc {
     pub normal_map: Option<String>,
     /// `pbr`: the normal map's xy scale; default 1.
     pub normal_scale: Option<f32>,
-    /// `pbr`: asset path of an sRGB map multiplying `emission` (not rendered yet).
+    /// `pbr`: asset path of an sRGB map multiplying `emission` (× `emission_strength`).
     pub emissive_map: Option<String>,
     /// Coverage in [0, 1]; default 1 (anything else is not rendered yet: a warning).
     pub alpha: Option<f32>,

@@ -111,7 +111,8 @@ pub fn load_mesh(geometry: &Geometry, resolver: &dyn AssetResolver) -> Result<Me
     }
 }
 
-/// An 8-bit texture (PNG, JPEG, TGA …) read as `usage` says; alpha is dropped.
+/// An 8-bit texture (PNG, JPEG, TGA …) read as `usage` says; alpha is kept for colour
+/// maps only.
 pub fn load_texture(
     asset: &str,
     usage: TextureUse,
@@ -120,10 +121,10 @@ pub fn load_texture(
     Ok(texture_of(&resolver.read(asset)?.decode_image()?, usage))
 }
 
-/// A decoded image as a texture read as `usage` says; alpha is dropped.
+/// A decoded image as a texture read as `usage` says; alpha is kept for colour maps only.
 pub fn texture_of(image: &image::DynamicImage, usage: TextureUse) -> Texture {
     match usage {
-        TextureUse::Color => albedo_texture(image),
+        TextureUse::Color | TextureUse::Emission => albedo_texture(image),
         TextureUse::Data | TextureUse::Normal => {
             let rgb = image.to_rgb8();
             let codes = rgb.pixels().map(|p| p.0).collect();
@@ -132,8 +133,15 @@ pub fn texture_of(image: &image::DynamicImage, usage: TextureUse) -> Texture {
     }
 }
 
-/// A decoded image as an sRGB albedo texture; alpha is dropped.
+/// A decoded image as an sRGB albedo texture, with its alpha channel as coverage where
+/// some texel is not opaque (alpha masks and blending read it).
 pub fn albedo_texture(image: &image::DynamicImage) -> Texture {
+    if image.color().has_alpha() {
+        let rgba = image.to_rgba8();
+        let codes = rgba.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect();
+        let alpha = rgba.pixels().map(|p| p.0[3]).collect();
+        return Texture::srgb8(rgba.width(), rgba.height(), codes).with_alpha(alpha);
+    }
     let rgb = image.to_rgb8();
     let codes = rgb.pixels().map(|p| p.0).collect();
     Texture::srgb8(rgb.width(), rgb.height(), codes)

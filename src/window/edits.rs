@@ -32,9 +32,10 @@ pub enum WindowEdit {
         object: u32,
         transform: Transform,
     },
+    /// Boxed: a material (with its maps' lookups) is several times any other edit.
     Material {
         id: MaterialId,
-        material: Material,
+        material: Box<Material>,
     },
     Light {
         index: u32,
@@ -73,7 +74,7 @@ impl WindowEdit {
                     .materials
                     .get_mut(*id as usize)
                     .ok_or(WindowEditError::NoMaterial(*id))?;
-                *slot = material.clone();
+                *slot = (**material).clone();
             }
             WindowEdit::Light { index, light } => {
                 let slot = state
@@ -191,7 +192,9 @@ mod tests {
         assert_eq!(s.objects[0].transform, moved);
         let mut glass = s.materials[0].clone();
         glass.kind = MaterialKind::Dielectric;
-        WindowEdit::Material { id: 0, material: glass.clone() }.apply(&mut s).expect("material 0");
+        WindowEdit::Material { id: 0, material: Box::new(glass.clone()) }
+            .apply(&mut s)
+            .expect("material 0");
         assert_eq!(s.materials[0], glass);
         let light = Light::Point { position: Vec3::ZERO, intensity: Vec3::ONE };
         WindowEdit::Light { index: 0, light }.apply(&mut s).expect("light 0");

@@ -390,7 +390,7 @@ fn selection_section(ui: &mut egui::Ui, model: &PanelModel, actions: &mut Vec<Pa
             m.emission = join_power(colour, strength);
         });
         if &m != material {
-            actions.push(PanelAction::Edit(WindowEdit::Material { id, material: m }));
+            actions.push(PanelAction::Edit(WindowEdit::Material { id, material: Box::new(m) }));
         }
     }
 }

@@ -11,7 +11,7 @@
 //! worker and the wire share one vocabulary; building render structures from them
 //! (meshes, BVHs) happens in the `gridlight` crate.
 
-use glam::{Quat, Vec3};
+use glam::{Quat, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// Version of a scene state; strictly increasing within one master run.
@@ -201,6 +201,67 @@ pub enum AlphaMode {
     Blend,
 }
 
+/// How a texture coordinate outside [0, 1] is brought back (glTF's sampler `wrapS`,
+/// `wrapT`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Wrap {
+    #[default]
+    Repeat,
+    ClampToEdge,
+    MirroredRepeat,
+}
+
+/// How a material looks one of its maps up: the wrap along u and v, and glTF's
+/// `KHR_texture_transform` in glTF's texture space (v down): uv' = offset + R (scale × uv),
+/// R turning the coordinates by `rotation` radians counter-clockwise.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MapLookup {
+    pub wrap: [Wrap; 2],
+    pub offset: Vec2,
+    pub rotation: f32,
+    pub scale: Vec2,
+}
+
+impl Default for MapLookup {
+    /// Repeat, untransformed.
+    fn default() -> Self {
+        Self { wrap: [Wrap::Repeat; 2], offset: Vec2::ZERO, rotation: 0.0, scale: Vec2::ONE }
+    }
+}
+
+impl MapLookup {
+    /// Whether the lookup is the default one (repeat, untransformed).
+    pub fn is_plain(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// Whether every number is finite.
+    pub fn is_finite(&self) -> bool {
+        self.offset.is_finite() && self.rotation.is_finite() && self.scale.is_finite()
+    }
+}
+
+/// The [`MapLookup`] of each map a material may have.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MapLookups {
+    pub base_color: MapLookup,
+    pub metallic_roughness: MapLookup,
+    pub normal: MapLookup,
+    pub emissive: MapLookup,
+}
+
+impl MapLookups {
+    /// The lookup of the map read as `usage`.
+    pub fn of(&self, usage: TextureUse) -> &MapLookup {
+        match usage {
+            TextureUse::Color => &self.base_color,
+            TextureUse::Data => &self.metallic_roughness,
+            TextureUse::Normal => &self.normal,
+            TextureUse::Emission => &self.emissive,
+        }
+    }
+}
+
 /// Material parameters; everything here can be edited live.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Material {
@@ -238,6 +299,8 @@ pub struct Material {
     pub normal_scale: f32,
     /// `Pbr`: asset path of an sRGB texture multiplying `emission`.
     pub emissive_texture: Option<String>,
+    /// How each map is looked up (wrap modes, texture transform).
+    pub lookups: MapLookups,
 }
 
 impl Material {
@@ -262,6 +325,7 @@ impl Material {
             normal_texture: None,
             normal_scale: 1.0,
             emissive_texture: None,
+            lookups: MapLookups::default(),
         }
     }
 
@@ -271,13 +335,14 @@ impl Material {
     }
 
     /// Every texture the material is rendered with: its asset path and how its texels
-    /// are read. The emissive map is not rendered yet, so not listed.
+    /// are read.
     pub fn textures(&self) -> impl Iterator<Item = (&str, TextureUse)> + '_ {
         let pbr = self.kind == MaterialKind::Pbr;
         [
             (self.base_color_texture.as_deref(), TextureUse::Color),
             (self.metallic_roughness_texture.as_deref().filter(|_| pbr), TextureUse::Data),
             (self.normal_texture.as_deref().filter(|_| pbr), TextureUse::Normal),
+            (self.emissive_texture.as_deref().filter(|_| pbr), TextureUse::Emission),
         ]
         .into_iter()
         .filter_map(|(path, usage)| Some((path?, usage)))
@@ -294,6 +359,9 @@ pub enum TextureUse {
     /// A tangent-space normal map: linear data as `Data`, kept apart only for the
     /// material that reads it.
     Normal,
+    /// sRGB-encoded emission (glTF's `emissiveTexture`): read as `Color`, kept apart only
+    /// for the material that reads it.
+    Emission,
 }
 
 /// A light that is not emissive geometry.

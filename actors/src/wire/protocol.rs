@@ -128,7 +128,8 @@ pub use crate::scene::asset_store::{AssetEntry, AssetHash};
 /// 12: `MaterialKind::Pbr` (glTF metallic-roughness) and the material fields it needs
 ///    (metallic, transmission, emission strength, alpha and its mode, maps): every
 ///    material has more positional fields, so no older worker decodes a newer state.
-pub const PROTOCOL_VERSION: u32 = 12;
+/// 13: `Material::lookups` (each map's wrap modes and glTF texture transform).
+pub const PROTOCOL_VERSION: u32 = 13;
 
 /// Largest frame either side accepts, in bytes (length prefix excluded).
 pub const MAX_FRAME_LEN: usize = 4 * 1024 * 1024;

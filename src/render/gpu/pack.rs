@@ -101,6 +101,13 @@ pub enum PackError {
          tracer does not render yet: render this scene on the CPU"
     )]
     UnsupportedMaterial { material: String },
+    /// The WGSL tracer has no alpha test: it refuses rather than draw a cut-out or
+    /// blended surface opaque.
+    #[error(
+        "material `{material}` is alpha-masked or blended, which the GPU tracer does not \
+         render yet: render this scene on the CPU"
+    )]
+    UnsupportedAlpha { material: String },
 }
 
 fn distribution(d: &Distribution1D) -> impl Iterator<Item = u32> + '_ {
@@ -114,6 +121,10 @@ pub fn pack(scene: &RenderScene) -> Result<PackedScene, PackError> {
     if let Some(i) = scene.materials.iter().position(|m| kind_code(m.kind).is_none()) {
         let material = scene.state().materials.get(i).map_or("?", |m| &m.name).to_owned();
         return Err(PackError::UnsupportedMaterial { material });
+    }
+    if let Some(i) = scene.materials.iter().position(|m| m.cutout) {
+        let material = scene.state().materials.get(i).map_or("?", |m| &m.name).to_owned();
+        return Err(PackError::UnsupportedAlpha { material });
     }
     let state = scene.state();
     let mut p = Params::default();
@@ -268,5 +279,30 @@ mod tests {
         assert!(err.to_string().contains("`brass`"), "{err}");
         let (assets, state) = furnace(Material::diffuse("white", Vec3::ONE), Vec3::ONE, 4, 1);
         assert!(pack(&RenderScene::new(assets, &state).unwrap()).is_ok());
+    }
+
+    #[test]
+    fn an_alpha_masked_or_blended_material_is_refused_by_name_and_an_opaque_one_packs() {
+        use gridlight_actors::state::AlphaMode;
+        for (mode, alpha, refused) in [
+            (AlphaMode::Mask, 0.2, true),
+            (AlphaMode::Blend, 0.5, true),
+            // Coverage 1 everywhere: nothing to cut, nothing refused.
+            (AlphaMode::Mask, 1.0, false),
+            (AlphaMode::Opaque, 0.2, false),
+        ] {
+            let leaf = Material { alpha, alpha_mode: mode, ..Material::diffuse("leaf", Vec3::ONE) };
+            let (assets, state) = furnace(leaf, Vec3::ONE, 4, 1);
+            let packed = pack(&RenderScene::new(assets, &state).unwrap());
+            match packed {
+                Err(err) => {
+                    assert!(refused, "{mode:?} {alpha}: {err}");
+                    assert!(
+                        err.to_string().contains("`leaf`") && err.to_string().contains("alpha")
+                    );
+                }
+                Ok(_) => assert!(!refused, "{mode:?} {alpha} must be refused"),
+            }
+        }
     }
 }

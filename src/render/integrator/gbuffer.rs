@@ -6,6 +6,7 @@ use glam::{Vec2, Vec3};
 
 use super::path::{albedo_of, closest, resolve, Hit};
 use super::MIN_ALBEDO;
+use crate::render::alpha::covering;
 use crate::render::isa::{Cpu, Isa};
 use crate::render::lanes::{F32s, WIDTH};
 use crate::render::{PixelSample, RenderScene};
@@ -13,7 +14,7 @@ use crate::render::{PixelSample, RenderScene};
 /// G-buffer sample through the pixel centre (reflected radiance zero).
 pub fn primary_hit(scene: &RenderScene, pixel: u32) -> PixelSample {
     let (o, d) = primary_ray(scene, pixel);
-    primary_sample(scene, o, d, scene.tlas.intersect(o, d, f32::INFINITY))
+    primary_sample(Cpu::BASELINE, scene, o, d, scene.tlas.intersect(o, d, f32::INFINITY))
 }
 
 /// Side of the square tiles whose camera rays [`primary_block_with`] traces together:
@@ -54,21 +55,23 @@ pub(super) fn primary_block_with<I: Isa>(
         for (l, hit) in hits.into_iter().enumerate().filter(|(l, _)| active & (1 << l) != 0) {
             let (col, row) = (l as u32 % PRIMARY_TILE, l as u32 / PRIMARY_TILE);
             let i = (row * width + tx + col) as usize;
-            out[i] = primary_sample(scene, o.lane(l), d.lane(l), hit);
+            out[i] = primary_sample(cpu, scene, o.lane(l), d.lane(l), hit);
         }
     }
 }
 
-/// The G-buffer values of the camera ray `(o, d)` whose closest geometry hit is `hit`.
+/// The G-buffer values of the camera ray `(o, d)` whose closest geometry hit is `hit`
+/// (surfaces that let the ray through are passed, tracing on with `cpu`).
 #[inline(always)]
-fn primary_sample(
+fn primary_sample<I: Isa>(
+    cpu: Cpu<I>,
     scene: &RenderScene,
     o: Vec3,
     d: Vec3,
     hit: Option<crate::render::accel::Hit>,
 ) -> PixelSample {
     let mut out = PixelSample { albedo: Vec3::ONE, object: u32::MAX, ..Default::default() };
-    let hit = resolve(scene, o, d, hit);
+    let hit = resolve(scene, o, d, covering(cpu, scene, (o, d, f32::INFINITY), hit));
     out.emission = seen_emission(scene, &hit, d);
     match hit {
         None => {}
@@ -114,7 +117,7 @@ fn seen_emission(scene: &RenderScene, hit: &Option<Hit>, d: Vec3) -> Vec3 {
         None => escaped(scene, d),
         Some(Hit::Light(q, _)) if -d.dot(q.normal) > 0.0 => q.radiance,
         Some(Hit::Surface(s)) if s.material.is_emissive() && -d.dot(s.ng) > 0.0 => {
-            s.material.emission
+            s.material.emission_at(s.uv)
         }
         _ => Vec3::ZERO,
     }

@@ -28,7 +28,7 @@ pub(crate) use builds::{v3, v4};
 pub use gbuffer::{area_emission, escaped_emission, pick, primary_hit, PRIMARY_TILE};
 pub(super) use nee::ShadowRay;
 pub use path::offset;
-pub(super) use path::{arrive, scatter, trace, PathState, Surface, EMPTY_SAMPLE};
+pub(super) use path::{arrive, interpolate_uv, scatter, trace, PathState, Surface, EMPTY_SAMPLE};
 
 /// Paths survive Russian roulette unconditionally up to this many segments.
 pub(super) const RR_START_DEPTH: u32 = 3;

@@ -28,7 +28,10 @@ impl ShadowRay {
         scene: &RenderScene,
         indirect: &mut Vec3,
     ) {
-        if !scene.tlas.occluded_with(cpu, self.origin, self.dir, self.tmax) {
+        let ray = (self.origin, self.dir, self.tmax);
+        if !scene.tlas.occluded_with(cpu, ray.0, ray.1, ray.2)
+            || !crate::render::alpha::still_blocked(cpu, scene, ray)
+        {
             *indirect += self.contribution;
         }
     }

@@ -6,6 +6,8 @@ use glam::{Vec2, Vec3};
 
 use super::nee::{next_event, ShadowRay};
 use super::{MIN_ALBEDO, RR_START_DEPTH};
+use crate::assets::{Lookup, Mesh};
+use crate::render::alpha::{covering, still_blocked, Found};
 use crate::render::isa::{Cpu, Isa};
 use crate::render::lights::AreaLight;
 use crate::render::microfacet::Frame;
@@ -39,19 +41,37 @@ pub(super) fn closest<'a, I: Isa>(
     o: Vec3,
     d: Vec3,
 ) -> Option<Hit<'a>> {
-    resolve(scene, o, d, scene.tlas.intersect_with(cpu, o, d, f32::INFINITY))
+    let first = scene.tlas.intersect_with(cpu, o, d, f32::INFINITY);
+    resolve(scene, o, d, covering(cpu, scene, (o, d, f32::INFINITY), first))
 }
 
-/// What the ray `o + t d` reaches given the geometry's closest `hit`: an area light in
-/// front of it, or the hit surface with its shading data.
+/// Texture coordinates of a hit on the triangle of vertices `idx` of `mesh` (which has
+/// them).
+#[inline(always)]
+pub(in crate::render) fn interpolate_uv(
+    mesh: &Mesh,
+    idx: [u32; 3],
+    hit: &crate::render::accel::Hit,
+) -> Vec2 {
+    let (u, v) = (hit.u, hit.v);
+    let w = 1.0 - u - v;
+    let [a, b, c] = idx.map(|i| mesh.uvs[i as usize]);
+    a * w + b * u + c * v
+}
+
+/// What the ray `o + t d` reaches given the geometry's closest covering hit (`found`): an
+/// area light in front of it, or the hit surface with its shading data.
 #[inline(always)]
 pub(super) fn resolve<'a>(
     scene: &'a RenderScene,
     o: Vec3,
     d: Vec3,
-    hit: Option<crate::render::accel::Hit>,
+    found: Found,
 ) -> Option<Hit<'a>> {
-    let mut tmax = hit.map_or(f32::INFINITY, |h| h.t);
+    let Found { hit, from } = found;
+    // The hit's distance from `o` (it was found from `from` if the ray passed a cut-out).
+    let along = |t: f32| if from == o { t } else { t + (from - o).dot(d) / d.length_squared() };
+    let mut tmax = hit.map_or(f32::INFINITY, |h| along(h.t));
     let mut light = None;
     for q in scene.lights.quads() {
         let edges =
@@ -87,22 +107,21 @@ pub(super) fn resolve<'a>(
         ns = -ns;
     }
     let uv = match idx {
-        Some(idx) if material.textured() && !mesh.uvs.is_empty() => {
-            let [a, b, c] = idx.map(|i| mesh.uvs[i as usize]);
-            a * w + b * u + c * v
-        }
+        Some(idx) if material.textured() && !mesh.uvs.is_empty() => interpolate_uv(mesh, idx, &hit),
         _ => Vec2::ZERO,
     };
     if let (Some(map), Some(idx)) = (&material.normal_map, idx) {
         if !mesh.uvs.is_empty() {
             let positions = idx.map(|i| mesh.positions[i as usize]);
-            let uvs = idx.map(|i| mesh.uvs[i as usize]);
+            // A transformed map's tangents follow its transformed coordinates.
+            let lookup = material.lookups.normal.as_ref();
+            let uvs = idx.map(|i| Lookup::transform(lookup, mesh.uvs[i as usize]));
             if let Some(frame) = triangle_tangents(positions, uvs, &inst.object_to_world) {
-                ns = bend(map, material.normal_scale, uv, ns, ng, frame);
+                ns = bend(map, lookup, material.normal_scale, uv, ns, ng, frame);
             }
         }
     }
-    Some(Hit::Surface(Surface { p: o + d * hit.t, ng, ns, uv, material, object: inst.object }))
+    Some(Hit::Surface(Surface { p: from + d * hit.t, ng, ns, uv, material, object: inst.object }))
 }
 
 /// Offsets a ray origin off the surface to the side `dir` leaves towards (public for the
@@ -131,7 +150,7 @@ pub(super) fn mis(a: f32, b: f32) -> f32 {
 #[inline]
 pub(super) fn albedo_of(material: &MaterialData, uv: Vec2) -> Vec3 {
     match &material.texture {
-        Some(t) => t.sample(uv) * material.base_color,
+        Some(t) => t.sample_with(uv, material.lookups.base_color.as_ref()) * material.base_color,
         None => material.base_color,
     }
 }
@@ -174,8 +193,9 @@ pub(in crate::render) const EMPTY_SAMPLE: PixelSample = PixelSample {
     object: u32::MAX,
 };
 
-/// The closest hit of the ray `(o, d)`; a pending `shadow` ray is traced together with it
-/// (the two walks in turns) and its contribution added to `indirect` unless blocked.
+/// The closest covering hit of the ray `(o, d)`; a pending `shadow` ray is traced together
+/// with it (the two walks in turns) and its contribution added to `indirect` unless
+/// blocked.
 #[inline(always)]
 pub(in crate::render) fn trace<I: Isa>(
     cpu: Cpu<I>,
@@ -183,20 +203,20 @@ pub(in crate::render) fn trace<I: Isa>(
     (o, d): (Vec3, Vec3),
     shadow: Option<ShadowRay>,
     indirect: &mut Vec3,
-) -> Option<crate::render::accel::Hit> {
-    let Some(s) = shadow else { return scene.tlas.intersect_with(cpu, o, d, f32::INFINITY) };
-    let (hit, blocked) = scene.tlas.intersect_and_occluded_with(
-        cpu,
-        (o, d, f32::INFINITY),
-        (s.origin, s.dir, s.tmax),
-    );
-    if !blocked {
+) -> Found {
+    let ray = (o, d, f32::INFINITY);
+    let Some(s) = shadow else {
+        return covering(cpu, scene, ray, scene.tlas.intersect_with(cpu, o, d, f32::INFINITY));
+    };
+    let shadow_ray = (s.origin, s.dir, s.tmax);
+    let (hit, blocked) = scene.tlas.intersect_and_occluded_with(cpu, ray, shadow_ray);
+    if !blocked || !still_blocked(cpu, scene, shadow_ray) {
         *indirect += s.contribution;
     }
-    hit
+    covering(cpu, scene, ray, hit)
 }
 
-/// What the ray `(o, d)` found (`hit`, the geometry's closest): adds the emission it
+/// What the ray `(o, d)` `found` (the geometry's closest covering hit): adds the emission it
 /// reached, MIS-weighted against light sampling unless the previous bounce could not have
 /// sampled a light, and records the G-buffer at the first vertex. Returns the surface and
 /// its albedo where the path scatters on; `None` when it ends.
@@ -205,7 +225,7 @@ pub(in crate::render) fn arrive<'a>(
     scene: &'a RenderScene,
     path: &mut PathState,
     (o, d): (Vec3, Vec3),
-    hit: Option<crate::render::accel::Hit>,
+    found: Found,
     max_depth: u32,
     nee: bool,
     out: &mut PixelSample,
@@ -219,7 +239,7 @@ pub(in crate::render) fn arrive<'a>(
             path.indirect += path.throughput * radiance * w;
         }
     };
-    let surface = match resolve(scene, o, d, hit) {
+    let surface = match resolve(scene, o, d, found) {
         None => {
             for (radiance, pdf) in lights.escaped(d) {
                 if radiance != Vec3::ZERO {
@@ -245,9 +265,13 @@ pub(in crate::render) fn arrive<'a>(
     if material.is_emissive() {
         let cos = (-d).dot(surface.ng);
         if cos > 0.0 {
-            let dist2 = (surface.p - o).length_squared();
-            let pdf = lights.area_pdf(material.emission, dist2, cos);
-            emit(material.emission, pdf, path, out);
+            let pdf = if material.is_sampled_light() {
+                let dist2 = (surface.p - o).length_squared();
+                lights.area_pdf(material.emission, dist2, cos)
+            } else {
+                0.0
+            };
+            emit(material.emission_at(surface.uv), pdf, path, out);
         }
     }
     let albedo = albedo_of(material, surface.uv);

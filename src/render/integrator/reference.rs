@@ -102,7 +102,7 @@ pub(crate) fn render_pixels_one_path(
 mod tests {
     use super::*;
     use crate::render::testscenes;
-    use gridlight_actors::state::MaterialKind;
+    use gridlight_actors::state::{AlphaMode, MaterialKind};
 
     /// Every build of the stream kernel must give the one-path reference's results bit
     /// for bit, for every material kind (a grid mixes CPUs).
@@ -115,35 +115,42 @@ mod tests {
             let why = format!("the CPU lacks {}, so that build was not checked", build.name());
             crate::testing::skip(test, crate::testing::Missing::CpuFeature, &why);
         }
-        // (kind, roughness, metallic, transmission, textured). Textured cases texture the
-        // walls (uvs 0..1 reach both ends of the texel wrap). The glTF cases cover its
+        // (kind, roughness, metallic, transmission, textured, alpha). Textured cases texture
+        // the walls (uvs 0..1 reach both ends of the texel wrap). The glTF cases cover its
         // plastic, a half metal, the smooth plastic (a delta layer over a diffuse base),
-        // glass mixed in, and a textured mix.
+        // glass mixed in, and a textured mix. The alpha cases cut the walls by the map's
+        // alpha (camera, bounce and shadow rays pass the cut-outs) or blend them.
+        let opaque = (AlphaMode::Opaque, 1.0);
         let kinds = [
-            (MaterialKind::Diffuse, 1.0, 0.0, 0.0, false),
-            (MaterialKind::Conductor, 0.3, 0.0, 0.0, false),
-            (MaterialKind::Glossy, 0.2, 0.0, 0.0, false),
-            (MaterialKind::Dielectric, 0.0, 0.0, 0.0, false),
-            (MaterialKind::Dielectric, 0.4, 0.0, 0.0, false),
-            (MaterialKind::Diffuse, 1.0, 0.0, 0.0, true),
-            (MaterialKind::Pbr, 0.4, 0.5, 0.0, false),
-            (MaterialKind::Pbr, 0.0, 0.0, 0.0, false),
-            (MaterialKind::Pbr, 0.3, 0.2, 0.6, true),
+            (MaterialKind::Diffuse, 1.0, 0.0, 0.0, false, opaque),
+            (MaterialKind::Conductor, 0.3, 0.0, 0.0, false, opaque),
+            (MaterialKind::Glossy, 0.2, 0.0, 0.0, false, opaque),
+            (MaterialKind::Dielectric, 0.0, 0.0, 0.0, false, opaque),
+            (MaterialKind::Dielectric, 0.4, 0.0, 0.0, false, opaque),
+            (MaterialKind::Diffuse, 1.0, 0.0, 0.0, true, opaque),
+            (MaterialKind::Pbr, 0.4, 0.5, 0.0, false, opaque),
+            (MaterialKind::Pbr, 0.0, 0.0, 0.0, false, opaque),
+            (MaterialKind::Pbr, 0.3, 0.2, 0.6, true, opaque),
+            (MaterialKind::Diffuse, 1.0, 0.0, 0.0, true, (AlphaMode::Mask, 0.9)),
+            (MaterialKind::Glossy, 0.2, 0.0, 0.0, false, (AlphaMode::Blend, 0.6)),
+            (MaterialKind::Pbr, 0.3, 0.2, 0.0, true, (AlphaMode::Blend, 0.7)),
         ];
         // Diffuse and glossy vertices take the stream kernel's vector stage (the others,
         // glTF's included, their lane's one-path step): lit by the box's area light alone,
         // its light samples are vector code; with an environment too, drawn lane by lane.
         let cases = kinds.into_iter().flat_map(|k| [(k, true), (k, false)]);
-        for ((kind, roughness, metallic, transmission, textured), environment) in cases {
+        for ((kind, roughness, metallic, transmission, textured, alpha), environment) in cases {
             let (assets, mut state) = testscenes::cornell_box(40, 30);
             state.materials[0].kind = kind;
             state.materials[0].roughness = roughness;
             state.materials[0].metallic = metallic;
             state.materials[0].transmission = transmission;
+            (state.materials[0].alpha_mode, state.materials[0].alpha) = alpha;
             let mut assets = (*assets).clone();
             if textured {
                 let texels = (0..15).map(|i| Vec3::new(0.2, (i % 4) as f32 / 4.0, 0.7)).collect();
-                let texture = crate::assets::Texture::linear(5, 3, texels);
+                let coverage = (0..15).map(|i| [0, 255, 120][i % 3]).collect();
+                let texture = crate::assets::Texture::linear(5, 3, texels).with_alpha(coverage);
                 assets.textures.insert("checker.png".into(), std::sync::Arc::new(texture));
                 state.materials[0].base_color_texture = Some("checker.png".into());
             }
@@ -158,6 +165,7 @@ mod tests {
             state.camera.aperture = if environment { 0.05 } else { 0.0 };
             let scene = RenderScene::new(assets, &state).unwrap();
             assert_eq!(scene.lights.area_only(), !environment);
+            assert_eq!(scene.cutouts, alpha != opaque, "{kind:?} {alpha:?}");
             let pixels: Vec<u32> = (0..40 * 30).collect();
             for strategy in [Strategy::NeeMis, Strategy::BsdfOnly] {
                 let mut reference = Vec::new();

@@ -162,6 +162,15 @@ impl Fixture {
         (self.push("images", image), png)
     }
 
+    /// A PNG image of `w`×`h` RGBA pixels, in a buffer view.
+    pub fn png_rgba(&mut self, w: u32, h: u32, rgba: &[[u8; 4]]) -> usize {
+        let img = image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(rgba[(y * w + x) as usize]));
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("png");
+        let view = self.view(&png);
+        self.push("images", json!({ "bufferView": view, "mimeType": "image/png" }))
+    }
+
     /// A texture of image `image` (default sampler).
     pub fn texture(&mut self, image: usize) -> usize {
         self.push("textures", json!({ "source": image }))

@@ -41,6 +41,7 @@ pub const HANDLED_EXTENSIONS: &[&str] = &[
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
     "KHR_materials_transmission",
+    "KHR_texture_transform",
 ];
 
 /// A glTF file that cannot be read. `element` names the offending part as glTF's JSON

@@ -309,17 +309,17 @@ fn unsupported_features_are_each_warned_about_once() {
     f.node(json!({ "mesh": m0 }), true);
     f.node(json!({ "mesh": m1 }), true);
     f.uses("KHR_materials_clearcoat");
-    f.uses("KHR_texture_transform");
-    f.json["extensionsRequired"] = json!(["KHR_texture_transform"]);
+    f.uses("KHR_materials_sheen");
+    f.json["extensionsRequired"] = json!(["KHR_materials_sheen"]);
     let warnings = read_glb(&f).expect("loads").warnings.into_vec();
-    for feature in
-        ["KHR_materials_clearcoat", "KHR_texture_transform", "normal maps", "alphaMode BLEND"]
-    {
+    for feature in ["KHR_materials_clearcoat", "KHR_materials_sheen", "normal maps"] {
         let n = warnings.iter().filter(|w| w.contains(feature)).count();
         assert_eq!(n, 1, "{feature}: {warnings:#?}");
     }
     // Rendered now: no warning.
-    assert!(!warnings.iter().any(|w| w.contains("metallicRoughnessTexture")), "{warnings:#?}");
+    for feature in ["metallicRoughnessTexture", "alphaMode"] {
+        assert!(!warnings.iter().any(|w| w.contains(feature)), "{feature}: {warnings:#?}");
+    }
 }
 
 #[test]
@@ -440,4 +440,145 @@ fn an_unknown_material_override_names_the_gltf_file() {
         .expect_err("no such material")
         .to_string();
     assert!(err.contains("`q.gltf` has no material `nope`"), "{err}");
+}
+
+/// The lit scene with its front quad alpha-masked by a 2×1 map, transparent on its left
+/// half (u < 0.5) and opaque on its right, loaded as `alpha_mode` says ("OPAQUE" ignores
+/// the map's alpha), at 64×48 pixels.
+fn masked_scene(alpha_mode: &str) -> scene::LoadedScene {
+    let mut f = lit_scene(json!({ "name": "leaf", "alphaMode": alpha_mode, "alphaCutoff": 0.5,
+        "pbrMetallicRoughness": { "baseColorFactor": [1.0, 0.4, 0.0, 1.0],
+                                  "baseColorTexture": { "index": 0 } } }));
+    let image = f.png_rgba(2, 1, &[[255, 255, 255, 0], [255, 255, 255, 255]]);
+    assert_eq!(f.texture(image), 0);
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("leaf.glb"), f.glb()).expect("write");
+    let mut loaded = load_scene(dir.path(), "leaf.glb");
+    loaded.state.resolution = gridlight_actors::state::Resolution { width: 64, height: 48 };
+    loaded.state.render.spp = 16;
+    loaded
+}
+
+/// A MASK quad in front of a lit wall: the G-buffer and the rendered pixels see the wall
+/// through the cut-out half and the quad's orange on the kept half; drawn opaque, both
+/// halves are orange.
+#[test]
+fn an_alpha_masked_quad_shows_the_wall_through_its_cut_out_half_only() {
+    use crate::render::{primary_hit, render_pixels, RenderScene};
+    let render = |loaded: scene::LoadedScene| {
+        assert!(loaded.warnings.iter().all(|w| !w.contains("alpha")), "{:?}", loaded.warnings);
+        RenderScene::new(std::sync::Arc::new(loaded.assets), &loaded.state).expect("renders")
+    };
+    let (opaque, masked) = (render(masked_scene("OPAQUE")), render(masked_scene("MASK")));
+    // The pixels that see the middle of each half of the quad when it is opaque.
+    let nearest = |target: Vec3| {
+        (0..64 * 48)
+            .min_by(|&a, &b| {
+                let d = |p| (primary_hit(&opaque, p).position - target).length();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap()
+    };
+    let (cut, kept) = (nearest(Vec3::new(-0.25, 0.0, 0.0)), nearest(Vec3::new(0.25, 0.0, 0.0)));
+    // Green over red: 0.4 for the orange quad, 1 for the grey wall (indirect light off the
+    // quad's back tints the wall a little, noise moves both a little).
+    let orange = |v: Vec3| v.x > 0.0 && (v.y / v.x - 0.4).abs() < 0.1;
+    let grey = |v: Vec3| v.x > 0.0 && (v.y / v.x - 1.0).abs() < 0.15;
+    for (scene, cut_seen) in [(&opaque, "quad"), (&masked, "wall")] {
+        let (a, b) = (primary_hit(scene, cut), primary_hit(scene, kept));
+        // The G-buffer: position and albedo of what the pixel's centre sees.
+        assert!(b.position.z.abs() < 1e-3 && orange(b.albedo), "kept half: {b:?}");
+        let on_wall = (a.position.z + 1.0).abs() < 1e-3;
+        assert_eq!(on_wall, cut_seen == "wall", "cut half: {a:?}");
+        assert_eq!(grey(a.albedo), on_wall, "cut half's albedo: {a:?}");
+        // The rendered colour.
+        let mut out = Vec::new();
+        render_pixels(scene, 0, &[cut, kept], &mut out);
+        let colour = |s: &crate::render::PixelSample| s.reflected + s.emission;
+        assert!(orange(colour(&out[1])), "kept half renders {:?}", colour(&out[1]));
+        let c = colour(&out[0]);
+        assert!(if on_wall { grey(c) } else { orange(c) }, "cut half renders {c:?}");
+    }
+    // The CPU G-buffer the master composes with sees through the cut-out too.
+    let g = crate::gbuffer::GBuffer::from_scene(&masked, 1.0);
+    assert!((g.position[cut as usize].z + 1.0).abs() < 1e-3);
+    assert!(g.position[kept as usize].z.abs() < 1e-3);
+}
+
+/// `emissiveFactor` × `emissiveTexture` (sRGB) × `KHR_materials_emissive_strength`: the lit
+/// scene's quad emits red on its left half and blue on its right, twice the map's codes;
+/// the G-buffer's emission plane and the rendered pixels see it, and no warning is given.
+#[test]
+fn an_emission_map_colours_the_emitter_in_the_gbuffer_and_the_render() {
+    use crate::render::{primary_hit, render_pixels, RenderScene};
+    let mut f = lit_scene(json!({ "name": "sign", "emissiveFactor": [1.0, 1.0, 0.5],
+        "emissiveTexture": { "index": 0 },
+        "extensions": { "KHR_materials_emissive_strength": { "emissiveStrength": 2.0 } },
+        "pbrMetallicRoughness": { "baseColorFactor": [0.0, 0.0, 0.0, 1.0] } }));
+    let (image, _) = f.png(2, 1, &[[255, 0, 0], [0, 0, 255]], None);
+    assert_eq!(f.texture(image), 0);
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("sign.glb"), f.glb()).expect("write");
+    let mut loaded = load_scene(dir.path(), "sign.glb");
+    assert!(loaded.warnings.iter().all(|w| !w.contains("emissive")), "{:?}", loaded.warnings);
+    loaded.state.resolution = gridlight_actors::state::Resolution { width: 64, height: 48 };
+    loaded.state.render.spp = 4;
+    let scene = RenderScene::new(std::sync::Arc::new(loaded.assets), &loaded.state).unwrap();
+    let nearest = |target: Vec3| {
+        (0..64 * 48)
+            .min_by(|&a, &b| {
+                let d = |p| (primary_hit(&scene, p).position - target).length();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap()
+    };
+    let (left, right) = (nearest(Vec3::new(-0.25, 0.0, 0.0)), nearest(Vec3::new(0.25, 0.0, 0.0)));
+    let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 0.25;
+    let g = crate::gbuffer::GBuffer::from_scene(&scene, 1.0);
+    let (red, blue) = (Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
+    assert!(close(g.emission[left as usize], red), "{}", g.emission[left as usize]);
+    assert!(close(g.emission[right as usize], blue), "{}", g.emission[right as usize]);
+    let mut out = Vec::new();
+    render_pixels(&scene, 0, &[left, right], &mut out);
+    assert!(close(out[0].emission, red) && close(out[1].emission, blue), "{out:?}");
+}
+
+/// Sampler wrap modes and `KHR_texture_transform` reach each map's lookup, with no warning;
+/// a transform's `texCoord` override to set 1 is warned about.
+#[test]
+fn wrap_modes_and_texture_transforms_reach_each_maps_lookup() {
+    use gridlight_actors::state::{MapLookup, Wrap};
+    let mut f = Fixture::new();
+    let (img, _) = f.png(1, 1, &[[9, 9, 9]], None);
+    // 33071 CLAMP_TO_EDGE, 33648 MIRRORED_REPEAT.
+    let sampler = f.push("samplers", json!({ "wrapS": 33071, "wrapT": 33648 }));
+    let clamped = f.push("textures", json!({ "source": img, "sampler": sampler }));
+    let plain = f.texture(img);
+    let transform = json!({ "KHR_texture_transform":
+        { "offset": [0.5, 0.25], "rotation": 0.3, "scale": [2.0, 3.0] } });
+    f.push(
+        "materials",
+        json!({ "name": "m",
+                "normalTexture": { "index": plain, "extensions": transform },
+                "emissiveTexture": { "index": plain,
+                    "extensions": { "KHR_texture_transform": { "texCoord": 1 } } },
+                "pbrMetallicRoughness": { "baseColorTexture": { "index": clamped } } }),
+    );
+    let mesh = f.quad_mesh(Some(0), 2);
+    f.node(json!({ "mesh": mesh }), true);
+    f.uses("KHR_texture_transform");
+    let data = read_glb(&f).expect("loads");
+    let l = data.materials[0].material.lookups;
+    assert_eq!(l.base_color.wrap, [Wrap::ClampToEdge, Wrap::MirroredRepeat]);
+    assert!(l.base_color.offset == glam::Vec2::ZERO && l.metallic_roughness.is_plain());
+    let expected = MapLookup {
+        wrap: [Wrap::Repeat; 2],
+        offset: glam::Vec2::new(0.5, 0.25),
+        rotation: 0.3,
+        scale: glam::Vec2::new(2.0, 3.0),
+    };
+    assert_eq!(l.normal, expected);
+    let warnings = data.warnings.into_vec();
+    assert!(!warnings.iter().any(|w| w.contains("wrap") || w.contains("KHR_texture_transform")));
+    assert_eq!(warnings.iter().filter(|w| w.contains("TEXCOORD_1")).count(), 1, "{warnings:?}");
 }
