@@ -36,6 +36,9 @@ pub struct Gpu {
     pub config: wgpu::SurfaceConfiguration,
     /// Whether the reconstruction can run on this device (`GpuContext::check_storage`).
     pub reconstructs: bool,
+    /// A suboptimal texture was handed out: reconfigure before the next acquisition
+    /// (wgpu refuses to configure while a surface texture is alive).
+    stale: bool,
 }
 
 /// What acquiring the next surface texture gave.
@@ -92,7 +95,7 @@ impl Gpu {
             format = ?format,
             "window surface ready"
         );
-        Ok(Self { surface, ctx, config, reconstructs })
+        Ok(Self { surface, ctx, config, reconstructs, stale: false })
     }
 
     /// Follows a window resize; a zero-sized window (minimised) keeps the old size.
@@ -107,11 +110,16 @@ impl Gpu {
 
     /// The next texture to draw into, reconfiguring the surface when it went stale.
     pub fn acquire(&mut self) -> Acquired {
+        if std::mem::take(&mut self.stale) {
+            self.surface.configure(&self.ctx.device, &self.config);
+        }
         match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(frame) => Acquired::Frame(frame),
             wgpu::CurrentSurfaceTexture::Suboptimal(frame) => {
-                // Draw this one; the next acquisition gets a matching configuration.
-                self.surface.configure(&self.ctx.device, &self.config);
+                // Draw this one; the next acquisition gets a matching configuration (not
+                // now: configuring while `frame` lives is a validation error, which
+                // panicked the window during a resize).
+                self.stale = true;
                 Acquired::Frame(frame)
             }
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use x11rb::connection::Connection;
@@ -44,7 +45,12 @@ impl Xvfb {
         if !which.status.success() {
             return Err("Xvfb is not installed (apt-get install xvfb; .ci/run does)".into());
         }
-        for n in 0..50 {
+        // Each attempt of this process takes a number of its own: two tests starting at
+        // once used to pick the same one, and the loser, seeing the winner's socket, went
+        // on as if the server were its own (both windows on one screen).
+        static ATTEMPTS: AtomicUsize = AtomicUsize::new(0);
+        for _ in 0..50 {
+            let n = ATTEMPTS.fetch_add(1, Ordering::Relaxed);
             let number = 140 + (std::process::id() as usize + n) % 400;
             if Path::new(&format!("/tmp/.X{number}-lock")).exists() {
                 continue;
@@ -59,11 +65,11 @@ impl Xvfb {
             let socket = PathBuf::from(format!("/tmp/.X11-unix/X{number}"));
             let deadline = Instant::now() + Duration::from_secs(10);
             while Instant::now() < deadline {
-                if socket.exists() {
-                    return Ok(Self { child, display: format!(":{number}"), width, height });
-                }
                 if child.try_wait().ok().flatten().is_some() {
                     break; // lost a race for this display number
+                }
+                if socket.exists() {
+                    return Ok(Self { child, display: format!(":{number}"), width, height });
                 }
                 std::thread::sleep(Duration::from_millis(50));
             }
