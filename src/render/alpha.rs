@@ -21,6 +21,7 @@ use gridlight_actors::state::AlphaMode;
 use super::accel::Hit;
 use super::integrator::offset;
 use super::isa::{Cpu, Isa};
+use super::sampler::to_unit;
 use super::{MaterialData, RenderScene};
 
 /// Surfaces a ray may pass before the next is taken as covering it whatever its alpha
@@ -52,7 +53,7 @@ pub fn lets_through(m: &MaterialData, uv: Vec2, (o, d): (Vec3, Vec3), triangle: 
     match m.alpha_mode {
         AlphaMode::Opaque => false,
         AlphaMode::Mask => coverage(m, uv) < m.alpha_cutoff,
-        AlphaMode::Blend => unit(ray_hash(o, d, triangle)) >= coverage(m, uv),
+        AlphaMode::Blend => to_unit(ray_hash(o, d, triangle)) >= coverage(m, uv),
     }
 }
 
@@ -147,12 +148,6 @@ fn fmix(mut h: u32) -> u32 {
     h ^= h >> 13;
     h = h.wrapping_mul(0xc2b2_ae35);
     h ^ (h >> 16)
-}
-
-/// A hash's top 24 bits as a number in [0, 1).
-#[inline(always)]
-fn unit(h: u32) -> f32 {
-    (h >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
 #[cfg(test)]

@@ -143,7 +143,7 @@ fn mix32(mut x: u32) -> u32 {
 
 /// Converts 32-bit fixed point to a float in [0, 1).
 #[inline(always)]
-fn to_unit(x: u32) -> f32 {
+pub(crate) fn to_unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
